@@ -1,0 +1,328 @@
+"""The case file: a strict schema (an unknown key is an error) and ``load_case``.
+
+A case is a TOML file or a dict of the same structure. Validation happens here, once; the
+solver receives a validated :class:`Case` with every body's mesh already read and checked.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from pathlib import Path
+from typing import Any, Literal, Optional, Union, get_args, get_origin
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from .errors import InputError
+from .expr import compile_expression
+from .materials import Material
+from .mesh.generators import DIAGONAL_PATTERNS, rectangle
+from .mesh.reader import read_mesh
+from .mesh.trimesh import TriMesh, validate_and_orient
+
+LIMITERS = ("none", "barth_jespersen", "venkatakrishnan")
+METHODS = ("fv", "fem-t3", "fem-q4md")
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
+
+
+class RunSettings(_Strict):
+    end_time: float = Field(gt=0, description="simulated time to reach, s")
+    cfl: float = Field(0.4, gt=0, le=1, description="Courant number of the time step")
+    output_interval: Optional[float] = Field(None, gt=0, description="snapshot cadence, s")
+    order: Literal[1, 2] = 2
+    limiter: Literal["none", "barth_jespersen", "venkatakrishnan"] = "barth_jespersen"
+    method: Literal["fv", "fem-t3", "fem-q4md"] = "fv"
+    geometric_flux: Literal["central", "upwind"] = "central"
+    max_steps: int = Field(10_000_000, gt=0, description="safety cap on the number of steps")
+
+    @field_validator("end_time", "cfl", "output_interval")
+    @classmethod
+    def _finite(cls, value):
+        if value is not None and not math.isfinite(value):
+            raise ValueError("must be a finite number")
+        return value
+
+
+class MaterialSpec(_Strict):
+    name: str = Field(min_length=1)
+    model: Literal["neo_hookean", "linear_elastic"] = "neo_hookean"
+    density: float = Field(gt=0, allow_inf_nan=False)
+    youngs_modulus: float = Field(gt=0, allow_inf_nan=False)
+    poisson_ratio: float = Field(gt=-1.0, lt=0.5, allow_inf_nan=False)
+
+
+class MeshSpec(_Strict):
+    generator: Optional[Literal["rectangle"]] = None
+    origin: Optional[tuple[float, float]] = None
+    size: Optional[tuple[float, float]] = None
+    divisions: Optional[tuple[int, int]] = None
+    pattern: str = "alternate"
+    file: Optional[str] = None
+
+    @model_validator(mode="after")
+    def _one_source(self):
+        if (self.generator is None) == (self.file is None):
+            raise ValueError("give either generator = \"rectangle\" or file = \"path\"")
+        if self.generator == "rectangle":
+            for key in ("origin", "size", "divisions"):
+                if getattr(self, key) is None:
+                    raise ValueError(f"rectangle needs {key}")
+            if min(self.size) <= 0 or not all(map(math.isfinite, self.size)):
+                raise ValueError("size must be two positive lengths")
+            if min(self.divisions) < 1:
+                raise ValueError("divisions must be two positive integers")
+            if self.pattern not in DIAGONAL_PATTERNS:
+                raise ValueError(f"pattern must be one of {', '.join(DIAGONAL_PATTERNS)}")
+        return self
+
+
+class VelocityComponents(_Strict):
+    x: Optional[float] = Field(None, allow_inf_nan=False)
+    y: Optional[float] = Field(None, allow_inf_nan=False)
+
+
+class BoundarySpec(_Strict):
+    region: str
+    velocity: Optional[VelocityComponents] = None
+    traction: Optional[tuple[float, float]] = None
+
+    @model_validator(mode="after")
+    def _one_condition(self):
+        if self.velocity is None and self.traction is None:
+            raise ValueError("give velocity = { x = ..., y = ... } or traction = [tx, ty]")
+        if self.velocity is not None and self.velocity.x is None and self.velocity.y is None:
+            raise ValueError("velocity needs at least one of x, y")
+        if self.traction is not None and not all(map(math.isfinite, self.traction)):
+            raise ValueError("traction must be finite")
+        return self
+
+
+class BodySpec(_Strict):
+    name: str = Field(min_length=1)
+    material: str
+    velocity: Any = (0.0, 0.0)
+    mesh: MeshSpec
+    boundary: list[BoundarySpec] = []
+
+    @field_validator("velocity")
+    @classmethod
+    def _velocity(cls, value):
+        if callable(value):
+            return value
+        if isinstance(value, (list, tuple)) and len(value) == 2:
+            for item in value:
+                if isinstance(item, bool) or not isinstance(item, (int, float, str)):
+                    raise ValueError("each component must be a number or an expression string")
+                if isinstance(item, (int, float)) and not math.isfinite(item):
+                    raise ValueError("components must be finite")
+            return tuple(value)
+        raise ValueError("expected [vx, vy] (numbers or expressions of x and y) "
+                         "or, from Python, a callable of the (n, 2) reference points")
+
+
+class ContactSpec(_Strict):
+    bodies: list[str] = Field(min_length=1, max_length=2)
+    model: Literal["stick", "slip"] = "slip"
+    wall: Optional[dict[str, Any]] = None
+    regions: Optional[list[str]] = None
+
+
+class CaseSpec(_Strict):
+    title: Optional[str] = None
+    run: RunSettings
+    material: list[MaterialSpec] = Field(min_length=1)
+    body: list[BodySpec] = Field(min_length=1)
+    contact: list[ContactSpec] = []
+
+
+class Body:
+    """A validated body: its mesh, material, initial velocity and boundary conditions."""
+
+    def __init__(self, spec: BodySpec, material: Material, mesh: TriMesh, velocity):
+        self.spec = spec
+        self.name = spec.name
+        self.material = material
+        self.mesh = mesh
+        self.initial_velocity = velocity  # callable (n,2) -> (n,2)
+        self.boundary = spec.boundary
+
+
+class Case:
+    """A validated case; ``bodies`` hold read and checked meshes."""
+
+    def __init__(self, spec: CaseSpec, base_dir: Path, source: str):
+        self.spec = spec
+        self.base_dir = base_dir
+        self.source = source
+        self.title = spec.title
+        self.run = spec.run
+        self.materials = {m.name: Material(m.name, m.model, m.density, m.youngs_modulus,
+                                           m.poisson_ratio) for m in spec.material}
+        self.bodies: list[Body] = []
+        self.contacts = spec.contact
+
+    @property
+    def stem(self) -> str:
+        return Path(self.source).stem if self.source.endswith(".toml") else "case"
+
+
+def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] = None) -> Case:
+    """Read and validate a case from a TOML path or a dict; raise InputError on any problem."""
+    if isinstance(source, dict):
+        data, name = source, "<dict>"
+        base = Path(base_dir) if base_dir is not None else Path.cwd()
+    else:
+        path = Path(source)
+        name = str(path)
+        if not path.is_file():
+            raise InputError(f"{path}: case file not found")
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{path}: invalid TOML ({exc})") from None
+        except UnicodeDecodeError:
+            raise InputError(f"{path}: not a UTF-8 text file") from None
+        base = Path(base_dir) if base_dir is not None else path.resolve().parent
+    try:
+        spec = CaseSpec.model_validate(data)
+    except ValidationError as exc:
+        raise InputError(_one_line(exc, name)) from None
+    case = Case(spec, base, name)
+    _check_names(spec, name)
+    for i, b in enumerate(spec.body):
+        mesh = _build_mesh(b.mesh, base, f"{name}: body[{i}].mesh")
+        for j, bc in enumerate(b.boundary):
+            if bc.region not in mesh.regions:
+                raise InputError(f"{name}: body[{i}].boundary[{j}].region: unknown region "
+                                 f"{bc.region!r} (the mesh has: "
+                                 f"{', '.join(sorted(mesh.regions)) or 'none'})")
+        velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity")
+        case.bodies.append(Body(b, case.materials[b.material], mesh, velocity))
+    return case
+
+
+def _check_names(spec: CaseSpec, source: str):
+    seen = set()
+    for i, m in enumerate(spec.material):
+        if m.name in seen:
+            raise InputError(f"{source}: material[{i}].name: duplicated name {m.name!r}")
+        seen.add(m.name)
+    bodies = set()
+    for i, b in enumerate(spec.body):
+        if b.name in bodies:
+            raise InputError(f"{source}: body[{i}].name: duplicated name {b.name!r}")
+        bodies.add(b.name)
+        if b.material not in seen:
+            raise InputError(f"{source}: body[{i}].material: unknown material {b.material!r} "
+                             f"(defined: {', '.join(sorted(seen))})")
+    for i, c in enumerate(spec.contact):
+        for name in c.bodies:
+            if name not in bodies:
+                raise InputError(f"{source}: contact[{i}].bodies: unknown body {name!r} "
+                                 f"(defined: {', '.join(sorted(bodies))})")
+
+
+def _build_mesh(spec: MeshSpec, base: Path, key: str) -> TriMesh:
+    if spec.generator == "rectangle":
+        mesh = rectangle(spec.origin, spec.size, spec.divisions, spec.pattern)
+        source = key
+    else:
+        path = Path(spec.file)
+        if not path.is_absolute():
+            path = base / path
+        mesh = read_mesh(path)
+        source = str(path)
+    return validate_and_orient(mesh, source)
+
+
+def _velocity_function(value, key):
+    if callable(value):
+        def evaluate(points):
+            try:
+                out = np.asarray(value(points), dtype=float)
+            except Exception as exc:
+                raise InputError(f"{key}: the velocity callable failed ({exc})") from None
+            if out.shape != points.shape or not np.all(np.isfinite(out)):
+                raise InputError(f"{key}: the velocity callable must return finite values of "
+                                 f"shape {points.shape}")
+            return out
+        return evaluate
+    parts = []
+    for c, item in zip("xy", value):
+        if isinstance(item, str):
+            parts.append(compile_expression(item, f"{key}.{c}"))
+        else:
+            parts.append(lambda x, y, _v=float(item): np.full(np.shape(x), _v))
+
+    def evaluate(points):
+        out = np.column_stack([f(points[:, 0], points[:, 1]) for f in parts])
+        if not np.all(np.isfinite(out)):
+            raise InputError(f"{key}: the expression gives non-finite values on the mesh")
+        return out
+    return evaluate
+
+
+# ------------------------------------------------------------------------------ error text
+
+def _one_line(exc: ValidationError, source: str) -> str:
+    errors = exc.errors()
+    # a misspelt key also makes the right one "missing": report the unknown key first
+    err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
+    loc = err["loc"]
+    path = _format_loc(loc)
+    kind = err["type"]
+    if kind == "extra_forbidden":
+        model = _model_at(CaseSpec, loc[:-1])
+        hint = ""
+        if model is not None:
+            close = difflib.get_close_matches(str(loc[-1]), list(model.model_fields), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else \
+                f" (expected one of: {', '.join(model.model_fields)})"
+        return f"{source}: {path}: unknown key{hint}"
+    if kind == "missing":
+        return f"{source}: {path}: required key is missing"
+    msg = err["msg"]
+    if msg.startswith("Value error, "):
+        msg = msg[len("Value error, "):]
+    got = err.get("input")
+    shown = "" if isinstance(got, dict) or got is None else f", got {got!r}"
+    return f"{source}: {path}: {msg[0].lower() + msg[1:]}{shown}"
+
+
+def _format_loc(loc) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "<top level>"
+
+
+def _model_at(model, loc):
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        field = model.model_fields.get(part)
+        if field is None:
+            return None
+        model = _unwrap_model(field.annotation)
+        if model is None:
+            return None
+    return model
+
+
+def _unwrap_model(annotation):
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    if get_origin(annotation) is not None:
+        for arg in get_args(annotation):
+            found = _unwrap_model(arg)
+            if found is not None:
+                return found
+    return None

@@ -1,0 +1,91 @@
+"""Command line: ``impactfv run | check | compare``.
+
+Exit codes: 0 success, 2 input error (one line, no traceback), 3 failed simulation,
+130/143 interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from . import __version__
+from .errors import InputError, SimulationError
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="impactfv", description=__doc__.splitlines()[0])
+    parser.add_argument("--version", action="version", version=f"impactfv {__version__}")
+    parser.add_argument("--debug", action="store_true", help="show tracebacks")
+    sub = parser.add_subparsers(dest="command", required=True)
+    p_run = sub.add_parser("run", help="run a case file")
+    p_run.add_argument("case", help="TOML case file")
+    p_run.add_argument("-o", "--output", help="output folder (default results/<case stem>)")
+    p_run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_check = sub.add_parser("check", help="check a case and report mesh, time step, memory")
+    p_check.add_argument("case")
+    p_cmp = sub.add_parser("compare", help="run the FV and FE methods on a case and compare")
+    p_cmp.add_argument("case")
+    p_cmp.add_argument("-o", "--output", help="output folder (default results/<stem>_compare)")
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "run":
+            return _run(args)
+        if args.command == "check":
+            return _check(args)
+        if args.command == "compare":
+            from .compare import compare_main
+            return compare_main(args)
+    except InputError as exc:
+        if args.debug:
+            raise
+        print(f"impactfv: error: {exc}", file=sys.stderr)
+        return 2
+    except SimulationError as exc:
+        if args.debug:
+            raise
+        print(f"impactfv: simulation failed: {exc}", file=sys.stderr)
+        return 3
+    except KeyboardInterrupt:
+        print("impactfv: interrupted", file=sys.stderr)
+        return 130
+    return 0
+
+
+def _run(args) -> int:
+    from .case import load_case
+    from .solver import run
+
+    case = load_case(args.case)
+    out = Path(args.output) if args.output else Path("results") / Path(args.case).stem
+    _check_output_dir(out)
+    result = run(case, out, progress=False if args.no_progress else None)
+    s = result.summary
+    print(f"{s['status']}: {s['steps']} steps to t = {s['end_time']:.4e} s, {s['nodes']} nodes, "
+          f"{s['wall_time_s']:.2f} s wall, "
+          f"{(s['node_stage_updates_per_second'] or 0) / 1e6:.2f} M node-stage updates/s")
+    print(f"results in {out}/ (history.csv, summary.json, fields.pvd)")
+    return 0
+
+
+def _check_output_dir(out: Path):
+    if out.exists() and not out.is_dir():
+        raise InputError(f"{out}: output path exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"{out}: cannot create output folder ({exc.strerror})") from None
+
+
+def _check(args) -> int:
+    from .case import load_case
+    from .checks import check_report
+
+    case = load_case(args.case)
+    print(check_report(case))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,16 @@
+"""Exceptions a user can meet, each mapped to a CLI exit code."""
+
+
+class InputError(ValueError):
+    """A problem with the user's input (case file, mesh file, values). CLI exit code 2.
+
+    The message is one line naming the key path or file and what was expected.
+    """
+
+
+class SimulationError(RuntimeError):
+    """A run that failed numerically (non-finite state, collapsed control volume). Exit 3."""
+
+    def __init__(self, message, step=None, time=None, body=None, node=None):
+        super().__init__(message)
+        self.step, self.time, self.body, self.node = step, time, body, node

@@ -1,0 +1,95 @@
+"""Output files. Each is written to a temporary name in the same folder, then renamed, so a
+run killed at any moment leaves every existing file complete and readable."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import tempfile
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+
+def _atomic_replace(path: Path, write):
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            write(fh)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+def atomic_write_text(path, text: str):
+    _atomic_replace(path, lambda fh: fh.write(text.encode("utf-8")))
+
+
+def write_history_csv(path, history: dict[str, np.ndarray], n_rows: int):
+    names = list(history)
+    table = np.column_stack([history[k][:n_rows] for k in names]) if n_rows else \
+        np.zeros((0, len(names)))
+    buf = io.StringIO()
+    buf.write(",".join(names) + "\n")
+    np.savetxt(buf, table, delimiter=",", fmt="%.12e")
+    atomic_write_text(path, buf.getvalue())
+
+
+def write_summary(path, summary: dict):
+    atomic_write_text(path, json.dumps(summary, indent=2, sort_keys=False) + "\n")
+
+
+class SnapshotWriter:
+    """Writes ``<stem>_NNNN.vtu`` snapshots and keeps ``<stem>.pvd`` indexing them."""
+
+    def __init__(self, folder, stem: str = "fields"):
+        self.folder = Path(folder)
+        self.stem = stem
+        self.entries: list[tuple[float, str]] = []
+
+    def write(self, time: float, points: np.ndarray, triangles: np.ndarray,
+              point_data: dict[str, np.ndarray]):
+        import meshio
+
+        name = f"{self.stem}_{len(self.entries):04d}.vtu"
+        pts3 = np.column_stack([points, np.zeros(len(points))])
+        data = {}
+        for key, value in point_data.items():
+            value = np.asarray(value, dtype=float)
+            if value.ndim == 2 and value.shape[1] == 2:  # ParaView wants 3-component vectors
+                value = np.column_stack([value, np.zeros(len(value))])
+            data[key] = value
+        mesh = meshio.Mesh(pts3, [("triangle", np.asarray(triangles, dtype=np.int64))],
+                           point_data=data)
+
+        target = self.folder / name
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", suffix=".tmp", dir=target.parent)
+        os.close(fd)
+        try:
+            meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=None)
+            os.replace(tmp, target)
+        except BaseException:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+            raise
+        self.entries.append((time, name))
+        self._write_pvd()
+
+    def _write_pvd(self):
+        lines = ['<?xml version="1.0"?>',
+                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+                 "  <Collection>"]
+        for t, name in self.entries:
+            lines.append(f'    <DataSet timestep="{t:.12e}" group="" part="0" '
+                         f"file={quoteattr(name)}/>")
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        atomic_write_text(self.folder / f"{self.stem}.pvd", "\n".join(lines))

@@ -1,0 +1,60 @@
+"""Built-in structured triangulations of rectangles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from .trimesh import TriMesh
+
+#: "right": every cell cut along the diagonal (0,0)-(1,1); "left": along (1,0)-(0,1);
+#: "alternate": the two alternate in a checkerboard (no preferred direction);
+#: "crossed": four triangles per cell around a centre node.
+DIAGONAL_PATTERNS = ("right", "left", "alternate", "crossed")
+
+
+def rectangle(origin, size, divisions, pattern: str = "alternate") -> TriMesh:
+    """Triangulate [x0, x0+Lx] x [y0, y0+Ly] with nx x ny cells.
+
+    Boundary regions are named xmin, xmax, ymin, ymax.
+    """
+    (x0, y0), (lx, ly), (nx, ny) = origin, size, divisions
+    if pattern not in DIAGONAL_PATTERNS:
+        raise InputError(f"mesh.pattern: expected one of {', '.join(DIAGONAL_PATTERNS)}, "
+                         f"got {pattern!r}")
+    xs = x0 + lx * np.arange(nx + 1) / nx
+    ys = y0 + ly * np.arange(ny + 1) / ny
+    X, Y = np.meshgrid(xs, ys, indexing="xy")
+    points = np.column_stack([X.ravel(), Y.ravel()])
+    i, j = np.meshgrid(np.arange(nx), np.arange(ny), indexing="xy")
+    i, j = i.ravel(), j.ravel()
+    n00 = j * (nx + 1) + i
+    n10, n01, n11 = n00 + 1, n00 + nx + 1, n00 + nx + 2
+    if pattern == "crossed":
+        centres = np.column_stack([x0 + lx * (i + 0.5) / nx, y0 + ly * (j + 0.5) / ny])
+        c = len(points) + np.arange(len(i))
+        points = np.vstack([points, centres])
+        tri = np.concatenate([np.column_stack(t) for t in
+                              ((n00, n10, c), (n10, n11, c), (n11, n01, c), (n01, n00, c))])
+    else:
+        if pattern == "right":
+            cut_right = np.ones(len(i), bool)
+        elif pattern == "left":
+            cut_right = np.zeros(len(i), bool)
+        else:
+            cut_right = (i + j) % 2 == 0
+        t_right = np.concatenate([np.column_stack((n00, n10, n11)), np.column_stack((n00, n11, n01))])
+        t_left = np.concatenate([np.column_stack((n00, n10, n01)), np.column_stack((n10, n11, n01))])
+        both = np.concatenate([cut_right, cut_right])
+        tri = np.where(both[:, None], t_right, t_left)
+    bottom = np.arange(nx)
+    top = ny * (nx + 1) + np.arange(nx)
+    left = np.arange(ny) * (nx + 1)
+    right = np.arange(ny) * (nx + 1) + nx
+    regions = {
+        "ymin": np.column_stack([bottom, bottom + 1]),
+        "xmax": np.column_stack([right, right + nx + 1]),
+        "ymax": np.column_stack([top + 1, top]),
+        "xmin": np.column_stack([left + nx + 1, left]),
+    }
+    return TriMesh(points, tri.astype(np.int64), regions)

@@ -1,0 +1,154 @@
+"""The triangle mesh of one body, with named boundary regions, plus checks and renumbering."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+from ..errors import InputError
+
+
+@dataclass
+class TriMesh:
+    """Reference points (n,2), counter-clockwise triangles (m,3), and boundary regions.
+
+    ``regions`` maps a region name to its boundary edges (k,2), each oriented so that the body
+    lies on the left of a->b (outward normal (dy, -dx)/L).
+    """
+
+    points: np.ndarray
+    triangles: np.ndarray
+    regions: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.points)
+
+    def triangle_areas(self) -> np.ndarray:
+        p = self.points[self.triangles]
+        d1 = p[:, 1] - p[:, 0]
+        d2 = p[:, 2] - p[:, 0]
+        return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
+
+    def edge_lengths(self) -> np.ndarray:
+        e = unique_edges(self.triangles)
+        return np.linalg.norm(self.points[e[:, 1]] - self.points[e[:, 0]], axis=1)
+
+    def quality(self) -> dict:
+        """Statistics a user wants before running: sizes, aspect ratios, smallest angles."""
+        p = self.points[self.triangles]
+        lengths = np.stack([np.linalg.norm(p[:, (i + 1) % 3] - p[:, i], axis=1)
+                            for i in range(3)], axis=1)
+        area = np.abs(self.triangle_areas())
+        # aspect ratio: longest edge over the height on it, scaled so an equilateral is 1
+        longest = lengths.max(axis=1)
+        aspect = longest ** 2 / (2.0 * area) * (np.sqrt(3.0) / 2.0)
+        cosines = []
+        for i in range(3):
+            a, b, c = lengths[:, i], lengths[:, (i + 1) % 3], lengths[:, (i + 2) % 3]
+            cosines.append((b ** 2 + c ** 2 - a ** 2) / (2 * b * c))
+        min_angle = np.degrees(np.arccos(np.clip(np.max(cosines, axis=0), -1, 1)))
+        edge_len = self.edge_lengths()
+        return {
+            "nodes": int(self.n_nodes), "triangles": int(len(self.triangles)),
+            "area": float(area.sum()),
+            "edge_length_min": float(edge_len.min()), "edge_length_max": float(edge_len.max()),
+            "aspect_ratio_max": float(aspect.max()),
+            "min_angle_deg": float(min_angle.min()),
+        }
+
+
+def unique_edges(triangles: np.ndarray) -> np.ndarray:
+    e = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    return np.unique(np.sort(e, axis=1), axis=0)
+
+
+def boundary_edges_of(triangles: np.ndarray) -> np.ndarray:
+    """Edges used by one triangle only, oriented as in their (counter-clockwise) triangle."""
+    directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
+    key = np.sort(directed, axis=1)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    return directed[counts[inverse.ravel()] == 1]
+
+
+def validate_and_orient(mesh: TriMesh, source: str) -> TriMesh:
+    """Check a mesh for the errors a user can make; orient triangles counter-clockwise.
+
+    Raises InputError naming ``source`` for degenerate triangles, out-of-range or duplicated
+    nodes, edges shared by more than two triangles, and empty regions.
+    """
+    pts = np.asarray(mesh.points, dtype=float)
+    tri = np.asarray(mesh.triangles)
+    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3:
+        raise InputError(f"{source}: expected at least 3 points with 2 coordinates")
+    if not np.all(np.isfinite(pts)):
+        raise InputError(f"{source}: non-finite point coordinates")
+    if tri.ndim != 2 or tri.shape[1] != 3 or len(tri) == 0:
+        raise InputError(f"{source}: expected a non-empty list of triangles (m, 3)")
+    if tri.min() < 0 or tri.max() >= len(pts):
+        raise InputError(f"{source}: triangle node index out of range 0..{len(pts) - 1}")
+    tri = tri.astype(np.int64)
+    if np.any(np.sort(tri, axis=1)[:, 1:] == np.sort(tri, axis=1)[:, :-1]):
+        raise InputError(f"{source}: a triangle repeats a node")
+    mesh = TriMesh(pts, tri, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()})
+    area = mesh.triangle_areas()
+    scale = np.median(mesh.edge_lengths()) ** 2
+    bad = np.flatnonzero(np.abs(area) <= 1e-10 * scale)
+    if len(bad):
+        raise InputError(f"{source}: {len(bad)} degenerate triangle(s) of (near) zero area, "
+                         f"first is triangle {bad[0]} with nodes {tri[bad[0]].tolist()}")
+    flip = area < 0
+    tri[flip] = tri[flip][:, [0, 2, 1]]
+    used = np.zeros(len(pts), bool)
+    used[tri.ravel()] = True
+    if not used.all():
+        raise InputError(f"{source}: {int((~used).sum())} node(s) belong to no triangle, "
+                         f"first is node {int(np.flatnonzero(~used)[0])}")
+    _, counts = np.unique(np.sort(np.concatenate(
+        [tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1), axis=0, return_counts=True)
+    if counts.max() > 2:
+        raise InputError(f"{source}: {int((counts > 2).sum())} edge(s) shared by more than two "
+                         "triangles (the mesh is not a manifold)")
+    rounded = np.unique(np.round(pts / np.sqrt(scale), 9), axis=0)
+    if len(rounded) != len(pts):
+        raise InputError(f"{source}: {len(pts) - len(rounded)} duplicated node(s) at the same "
+                         "position (merge them so the triangles connect)")
+    mesh.triangles = tri
+    # re-orient region edges like the boundary edges they are
+    boundary = boundary_edges_of(tri)
+    lookup = {(int(a), int(b)): True for a, b in boundary}
+    for name, edges in mesh.regions.items():
+        if len(edges) == 0:
+            raise InputError(f"{source}: boundary region {name!r} is empty")
+        fixed = []
+        for a, b in edges:
+            if (int(a), int(b)) in lookup:
+                fixed.append((a, b))
+            elif (int(b), int(a)) in lookup:
+                fixed.append((b, a))
+            else:
+                raise InputError(f"{source}: region {name!r} has edge ({a}, {b}) that is not on "
+                                 "the boundary of the triangles")
+        mesh.regions[name] = np.array(fixed, dtype=np.int64).reshape(-1, 2)
+    return mesh
+
+
+def renumber_for_locality(mesh: TriMesh) -> tuple[TriMesh, np.ndarray]:
+    """Reverse Cuthill-McKee node order, triangles sorted by their first node.
+
+    Returns the renumbered mesh and ``order`` with new_points = old_points[order].
+    """
+    n = mesh.n_nodes
+    e = unique_edges(mesh.triangles)
+    graph = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
+    graph = graph + graph.T
+    order = np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=np.int64)
+    new_index = np.empty(n, np.int64)
+    new_index[order] = np.arange(n)
+    tri = new_index[mesh.triangles]
+    tri = tri[np.argsort(tri.min(axis=1), kind="stable")]
+    regions = {k: new_index[v] for k, v in mesh.regions.items()}
+    return TriMesh(mesh.points[order], tri, regions), order

@@ -1,0 +1,1 @@
+"""The upwind vertex-centred scheme: Riemann point functions and compiled kernels."""

@@ -1,0 +1,262 @@
+"""The time loop: two-stage TVD Runge-Kutta with a CFL time step, monitors and output.
+
+Data flows one way: case -> model arrays -> kernels -> monitors and writers. The loop body
+calls compiled kernels only; nothing in it loops over nodes or edges in Python.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import __version__
+from .case import Case
+from .errors import InputError, SimulationError
+from .io.writers import SnapshotWriter, write_history_csv, write_summary
+from .model import Model, build_model
+from .scheme import kernels as K
+
+HISTORY_COLUMNS = ("time", "dt", "kinetic_energy", "strain_energy", "total_energy",
+                   "momentum_x", "momentum_y")
+LIMITER_IDS = {"none": K.LIMITER_NONE, "barth_jespersen": K.LIMITER_BARTH_JESPERSEN,
+               "venkatakrishnan": K.LIMITER_VENKATAKRISHNAN}
+
+
+@dataclass
+class RunResult:
+    history: dict[str, np.ndarray]
+    bodies: dict[str, dict[str, np.ndarray]]
+    summary: dict
+    output_dir: Path | None = None
+    snapshots: list = field(default_factory=list)
+
+
+class FVSolver:
+    """State and work arrays of one finite-volume run, allocated once."""
+
+    def __init__(self, case: Case, model: Model | None = None):
+        self.case = case
+        self.model = m = model if model is not None else build_model(case)
+        n = m.n_nodes
+        self.order = case.run.order
+        self.limiter = LIMITER_IDS[case.run.limiter]
+        self.cfl = case.run.cfl
+        self.upwind_geometric = case.run.geometric_flux == "upwind"
+        self.v = m.v0.copy()
+        self.F = np.zeros((n, 4))
+        self.F[:, 0] = self.F[:, 3] = 1.0
+        self.x = m.X.copy()
+        self.v0, self.F0, self.x0 = np.empty_like(self.v), np.empty_like(self.F), \
+            np.empty_like(self.x)
+        self.P = np.empty((n, 4))
+        self.grad = np.zeros((n, 2, 2))
+        self.vmin, self.vmax, self.phi = (np.empty((n, 2)) for _ in range(3))
+        self.force = np.empty((n, 2))
+        self.dF = np.empty((n, 4))
+        self.xdot = self.v  # positions move with the nodal velocity
+        self.monitor_buf = np.zeros((len(m.bodies), 4))
+
+    # -- one stage of rates
+    def rates(self):
+        m = self.model
+        K.compute_stress(self.F, m.node_mat, m.mat, self.P)
+        if self.order == 2:
+            K.velocity_gradient(self.v, m.edges, m.C, m.hb_node, m.hb_other, m.hb_C, m.omega,
+                                self.grad)
+            if self.limiter != K.LIMITER_NONE:
+                K.limit_gradient(self.v, m.edges, m.half, m.node_length, self.limiter,
+                                 self.vmin, self.vmax, self.phi, self.grad)
+        K.assemble_rates(self.v, self.F, self.P, self.grad, m.node_mat, m.mat, m.edges, m.C,
+                         m.C_len, m.half, m.hb_node, m.hb_other, m.hb_C, m.hb_bc, m.bc_fix,
+                         m.bc_v, m.bc_t, self.order == 2, self.upwind_geometric, self.force,
+                         self.dF)
+
+    def stable_dt(self) -> float:
+        m = self.model
+        return self.cfl * K.stable_time_step(self.F, m.node_mat, m.mat, m.node_length)
+
+    def step(self, dt: float):
+        m = self.model
+        self.v0[:] = self.v
+        self.F0[:] = self.F
+        self.x0[:] = self.x
+        for alpha in (0.0, 0.5):
+            self.rates()
+            K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
+                        self.force, self.dF, self.xdot, m.node_mat, m.mat, m.omega,
+                        m.fixed_mask, m.fixed_value)
+
+    def energies(self) -> np.ndarray:
+        m = self.model
+        K.monitors(self.v, self.F, m.node_mat, m.mat, m.omega, m.body_of_node, len(m.bodies),
+                   self.monitor_buf)
+        return self.monitor_buf.sum(axis=0)
+
+    def check_state(self, step: int, t: float):
+        bad = K.state_is_bad(self.v, self.F)
+        if bad >= 0:
+            m = self.model
+            body = m.bodies[m.body_of_node[bad]]
+            J = self.F[bad, 0] * self.F[bad, 3] - self.F[bad, 1] * self.F[bad, 2]
+            what = "non-finite state" if not np.isfinite(J) or not np.all(
+                np.isfinite(self.v[bad])) else f"collapsed control volume (J = {J:.3g})"
+            raise SimulationError(
+                f"{what} at step {step}, time {t:.6e} s, body {body.name!r}, node "
+                f"{bad - body.start} (reference position {m.X[bad].tolist()}); try a smaller "
+                "cfl or a finer mesh", step=step, time=t, body=body.name, node=bad - body.start)
+
+    def body_fields(self) -> dict[str, dict[str, np.ndarray]]:
+        m = self.model
+        n = m.n_nodes
+        pressure, vm, jac = np.empty(n), np.empty(n), np.empty(n)
+        K.point_fields(self.F, m.node_mat, m.mat, pressure, vm, jac)
+        out = {}
+        for b in m.bodies:
+            s = slice(b.start, b.stop)
+            out[b.name] = {
+                "reference_points": m.X[s].copy(), "points": self.x[s].copy(),
+                "triangles": b.triangles - b.start, "velocity": self.v[s].copy(),
+                "displacement": self.x[s] - m.X[s], "pressure": pressure[s].copy(),
+                "von_mises": vm[s].copy(), "J": jac[s].copy(),
+                "F": self.F[s].reshape(-1, 2, 2).copy(),
+            }
+        return out
+
+    def point_data(self) -> dict[str, np.ndarray]:
+        m = self.model
+        n = m.n_nodes
+        pressure, vm, jac = np.empty(n), np.empty(n), np.empty(n)
+        K.point_fields(self.F, m.node_mat, m.mat, pressure, vm, jac)
+        return {"velocity": self.v, "displacement": self.x - m.X, "pressure": pressure,
+                "von_mises": vm, "J": jac, "body": m.body_of_node.astype(float)}
+
+
+class History:
+    """Preallocated, growing columns; one row per step."""
+
+    def __init__(self, columns):
+        self.columns = list(columns)
+        self.data = {k: np.zeros(1024) for k in self.columns}
+        self.n = 0
+
+    def append(self, row):
+        if self.n == len(self.data[self.columns[0]]):
+            for k in self.columns:
+                self.data[k] = np.concatenate([self.data[k], np.zeros(self.n)])
+        for k, value in zip(self.columns, row):
+            self.data[k][self.n] = value
+        self.n += 1
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        return {k: self.data[k][:self.n].copy() for k in self.columns}
+
+
+def run(case: Case, output_dir=None, progress: bool | None = None) -> RunResult:
+    """Run a validated case. Writes files only when ``output_dir`` is given.
+
+    ``progress``: show a progress bar (default: when standard error is a terminal).
+    """
+    if case.run.method != "fv":
+        from .fem.driver import run_fem_case
+        return run_fem_case(case, output_dir, progress)
+    wall_start = _time.perf_counter()
+    solver = FVSolver(case)
+    m = solver.model
+    run_cfg = case.run
+    end = run_cfg.end_time
+    interval = run_cfg.output_interval or end / 10.0
+    out = Path(output_dir) if output_dir is not None else None
+    writer = SnapshotWriter(out, "fields") if out is not None else None
+    history = History(HISTORY_COLUMNS)
+
+    def record(t, dt):
+        ke, se, px, py = solver.energies()
+        history.append((t, dt, ke, se, ke + se, px, py))
+
+    def snapshot(t):
+        if writer is not None:
+            writer.write(t, solver.x, np.concatenate([b.triangles for b in m.bodies]),
+                         solver.point_data())
+
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+    t, steps = 0.0, 0
+    record(0.0, 0.0)
+    snapshot(0.0)
+    next_output = interval
+    bar = _progress_bar(progress, end)
+    status = "completed"
+    loop_start = _time.perf_counter()
+    try:
+        while t < end * (1 - 1e-12):
+            dt = solver.stable_dt()
+            if not (dt > 0 and math.isfinite(dt)):
+                solver.check_state(steps, t)
+                raise SimulationError(f"time step became {dt} at step {steps}, time {t:.6e} s",
+                                      step=steps, time=t)
+            target = min(next_output, end)
+            if t + dt >= target * (1 - 1e-12):
+                dt = target - t
+            solver.step(dt)
+            t = target if abs(t + dt - target) <= 1e-12 * end else t + dt
+            steps += 1
+            solver.check_state(steps, t)
+            record(t, dt)
+            if t >= next_output * (1 - 1e-12) or t >= end * (1 - 1e-12):
+                snapshot(t)
+                if out is not None:
+                    write_history_csv(out / "history.csv", history.data, history.n)
+                next_output = min(next_output + interval, end) if t < end * (1 - 1e-12) \
+                    else math.inf
+                while next_output <= t * (1 + 1e-12):
+                    next_output += interval
+            if bar is not None:
+                bar.update(t - bar.n)
+            if steps >= run_cfg.max_steps:
+                status = "stopped at max_steps"
+                break
+    except SimulationError:
+        status = "failed"
+        _finish(out, history, solver, case, steps, t, wall_start, loop_start, status)
+        raise
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = _finish(out, history, solver, case, steps, t, wall_start, loop_start, status)
+    return RunResult(history.arrays(), solver.body_fields(), summary, out,
+                     writer.entries if writer else [])
+
+
+def _finish(out, history, solver, case, steps, t, wall_start, loop_start, status):
+    m = solver.model
+    loop_time = _time.perf_counter() - loop_start
+    last = {k: float(history.data[k][history.n - 1]) for k in history.columns}
+    summary = {
+        "title": case.title, "version": __version__, "method": "fv", "status": status,
+        "nodes": int(m.n_nodes), "edges": int(m.n_edges), "bodies": [b.name for b in m.bodies],
+        "steps": int(steps), "end_time": float(t),
+        "wall_time_s": _time.perf_counter() - wall_start, "time_loop_s": loop_time,
+        "node_stage_updates_per_second": 2.0 * m.n_nodes * steps / loop_time if loop_time > 0
+        else None,
+        "final": last,
+    }
+    if out is not None:
+        write_history_csv(out / "history.csv", history.data, history.n)
+        write_summary(out / "summary.json", summary)
+    return summary
+
+
+def _progress_bar(progress, end):
+    if progress is None:
+        progress = sys.stderr.isatty()
+    if not progress:
+        return None
+    from tqdm import tqdm
+    return tqdm(total=end, unit="s", unit_scale=True, desc="simulated time",
+                bar_format="{l_bar}{bar}| {n:.3e}/{total:.3e} s [{elapsed}<{remaining}]")

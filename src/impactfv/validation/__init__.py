@@ -1,0 +1,1 @@
+"""Analytic solutions and ready-made validation cases (numerics.md H)."""

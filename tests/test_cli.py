@@ -1,0 +1,147 @@
+"""The command line: outputs a user finds, and one-line errors with exit code 2."""
+
+import csv
+import json
+import os
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import meshio
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+GOOD = """
+title = "cli test"
+[run]
+end_time = 2.0e-6
+output_interval = 1.0e-6
+
+[[material]]
+name = "copper"
+model = "neo_hookean"
+density = 8930.0
+youngs_modulus = 585.0e6
+poisson_ratio = 0.495
+
+[[body]]
+name = "bar"
+material = "copper"
+velocity = [50.0, 0.0]
+mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], divisions = [12, 3] }
+
+[[body.boundary]]
+region = "xmin"
+velocity = { x = 0.0 }
+"""
+
+
+def impactfv(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "impactfv.cli", *map(str, args)],
+                          capture_output=True, text=True, cwd=cwd)
+
+
+def test_run_writes_history_summary_and_paraview_files(tmp_path):
+    case = tmp_path / "bar.toml"
+    case.write_text(GOOD)
+    proc = impactfv("run", case, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "results" / "bar"
+    with open(out / "history.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    for col in ("time", "dt", "kinetic_energy", "strain_energy", "total_energy",
+                "momentum_x", "momentum_y"):
+        assert col in rows[0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed"
+    assert summary["steps"] == len(rows) - 1
+    assert float(rows[-1]["time"]) == pytest.approx(2.0e-6, rel=1e-12)
+    pvd = ET.parse(out / "fields.pvd").getroot()
+    files = [d.get("file") for d in pvd.iter("DataSet")]
+    assert len(files) == 3
+    mesh = meshio.read(out / files[-1])
+    for name in ("velocity", "displacement", "pressure", "von_mises", "J"):
+        assert name in mesh.point_data
+    # the clamped end pushes back: a compressive (positive) pressure appears there
+    assert mesh.point_data["pressure"].max() > 1e6
+
+
+def test_check_reports_time_step_and_memory(tmp_path):
+    case = tmp_path / "bar.toml"
+    case.write_text(GOOD)
+    proc = impactfv("check", case)
+    assert proc.returncode == 0, proc.stderr
+    assert "c_p = 1487.57 m/s" in proc.stdout
+    assert "time step" in proc.stdout and "memory" in proc.stdout
+    assert not (tmp_path / "results").exists()
+
+
+BAD = [
+    ("[run]\nend_time = 2.0e-6", "[run]\nend_tim = 2.0e-6", "run.end_tim: unknown key (did you mean 'end_time'?)"),
+    ("[run]\nend_time = 2.0e-6", "[run]\ncfl = 0.5", "run.end_time: required key is missing"),
+    ("end_time = 2.0e-6", 'end_time = "soon"', "run.end_time"),
+    ("poisson_ratio = 0.495", "poisson_ratio = 0.5", "material[0].poisson_ratio"),
+    ("density = 8930.0", "density = 0.0", "material[0].density"),
+    ('material = "copper"', 'material = "steel"', "body[0].material: unknown material 'steel'"),
+    ('mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], divisions = [12, 3] }',
+     'mesh = { file = "missing.msh" }', "missing.msh: mesh file not found"),
+    ('region = "xmin"', 'region = "left"', "body[0].boundary[0].region: unknown region 'left'"),
+    ("velocity = [50.0, 0.0]", 'velocity = ["__import__(\'os\')", 0]', "body[0].velocity.x"),
+    ("velocity = [50.0, 0.0]", "velocity = [50.0]", "body[0].velocity"),
+    ("divisions = [12, 3]", "divisions = [12, 0]", "body[0].mesh"),
+]
+
+
+@pytest.mark.parametrize("good,bad,expected", BAD)
+def test_bad_input_gives_one_line_and_exit_code_2(tmp_path, good, bad, expected):
+    assert good in GOOD
+    case = tmp_path / "bad.toml"
+    case.write_text(GOOD.replace(good, bad, 1))
+    proc = impactfv("run", case, cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert expected in lines[0]
+    assert "Traceback" not in proc.stderr
+    assert not (tmp_path / "results").exists() or not any((tmp_path / "results").rglob("*.csv"))
+
+
+def test_degenerate_triangles_in_a_mesh_file_are_refused(tmp_path):
+    pts = np.array([[0, 0], [1, 0], [0, 1], [2, 0]], float)
+    tri = np.array([[0, 1, 2], [0, 1, 3]])  # the second is flat
+    meshio.write(tmp_path / "flat.msh", meshio.Mesh(pts, [("triangle", tri)]),
+                 file_format="gmsh22", binary=False)
+    case = tmp_path / "c.toml"
+    case.write_text(GOOD.replace('{ generator = "rectangle", origin = [0.0, 0.0], size = [0.004, '
+                                 '0.001], divisions = [12, 3] }', '{ file = "flat.msh" }')
+                    .split("[[body.boundary]]")[0])
+    proc = impactfv("check", case)
+    assert proc.returncode == 2
+    assert "flat.msh" in proc.stderr and "degenerate" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_gmsh_file_with_physical_groups(tmp_path):
+    """A .msh file read through meshio: physical line groups become named regions."""
+    from impactfv.mesh import rectangle
+    m = rectangle((0, 0), (0.004, 0.001), (8, 2))
+    lines = np.concatenate([m.regions["xmin"], m.regions["ymin"]])
+    tags = np.concatenate([np.full(len(m.regions["xmin"]), 1), np.full(len(m.regions["ymin"]), 2)])
+    mesh = meshio.Mesh(np.column_stack([m.points, np.zeros(len(m.points))]),
+                       [("line", lines), ("triangle", m.triangles)],
+                       cell_data={"gmsh:physical": [tags, np.full(len(m.triangles), 3)],
+                                  "gmsh:geometrical": [tags, np.full(len(m.triangles), 3)]},
+                       field_data={"clamp": np.array([1, 1]), "floor": np.array([2, 1]),
+                                   "domain": np.array([3, 2])})
+    meshio.write(tmp_path / "bar.msh", mesh, file_format="gmsh22", binary=False)
+    text = GOOD.replace('{ generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], '
+                        'divisions = [12, 3] }', '{ file = "bar.msh" }')
+    text = text.replace('region = "xmin"', 'region = "clamp"')
+    (tmp_path / "bar.toml").write_text(text)
+    proc = impactfv("run", "bar.toml", "-o", "out", "--no-progress", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["nodes"] == len(m.points)

@@ -1,0 +1,80 @@
+"""Discrete identities and conservation of the p-F scheme (numerics.md H.5)."""
+
+import numpy as np
+import pytest
+
+from impactfv import load_case, run
+from impactfv.materials import first_piola
+from impactfv.mesh.dual import green_gauss_gradient, median_dual
+from impactfv.solver import FVSolver
+
+
+def test_uniform_velocity_stays_uniform(block):
+    result = run(load_case(block(velocity=(12.0, -7.0), end_time=3e-6)))
+    v = result.bodies["block"]["velocity"]
+    assert np.abs(v - [12.0, -7.0]).max() < 1e-10
+    F = result.bodies["block"]["F"]
+    assert np.abs(F - np.eye(2)).max() < 1e-13
+
+
+def test_uniform_stretch_with_matching_tractions_stays_uniform(block):
+    Fu = np.array([[1.01, 0.004], [0.002, 0.985]])
+    case = block(end_time=3e-6)
+    mat = load_case(case).materials["copper"]
+    P = np.array(first_piola(*Fu.ravel(), mat.mu, mat.lam, mat.kappa, 0)).reshape(2, 2)
+    normals = {"xmin": (-1, 0), "xmax": (1, 0), "ymin": (0, -1), "ymax": (0, 1)}
+    case["body"][0]["boundary"] = [{"region": r, "traction": list(P @ np.array(n, float))}
+                                   for r, n in normals.items()]
+    solver = FVSolver(load_case(case))
+    solver.F[:] = Fu.ravel()
+    solver.x[:] = solver.model.X @ Fu.T
+    for _ in range(20):
+        solver.step(0.5 * solver.stable_dt())
+    assert np.abs(solver.F - Fu.ravel()).max() < 1e-12
+    assert np.abs(solver.v).max() < 1e-9
+
+
+def test_free_body_conserves_momentum_and_never_gains_energy(block):
+    case = block(divisions=(24, 10), end_time=2e-5, order=2,
+                 velocity=["30*sin(400*x) + 5000*y", "20*cos(900*y) - 3000*x"])
+    h = run(load_case(case)).history
+    for key in ("momentum_x", "momentum_y"):
+        scale = np.abs(h["momentum_x"][0]) + np.abs(h["momentum_y"][0])
+        assert np.abs(h[key] - h[key][0]).max() < 1e-12 * scale
+    E = h["total_energy"]
+    assert np.all(np.diff(E) <= 1e-12 * E[0])
+    assert E[-1] < E[0]  # upwinding dissipates a little
+    assert E[-1] > 0.9 * E[0]
+
+
+def test_interior_F_stays_the_gradient_of_positions(block):
+    """With the central geometric flux F_a = GG(x)_a at every interior node (B.5)."""
+    case = block(divisions=(16, 8), end_time=1e-5,
+                 velocity=["30*sin(400*x)", "20*cos(900*y) - 3000*x"])
+    solver = FVSolver(load_case(case))
+    for _ in range(30):
+        solver.step(solver.stable_dt())
+    m = solver.model
+    dual = median_dual(m.X, m.bodies[0].triangles)
+    gg = green_gauss_gradient(dual, solver.x).reshape(-1, 4)
+    interior = np.ones(m.n_nodes, bool)
+    interior[m.hb_node] = False
+    assert interior.sum() > 50
+    assert np.abs(solver.F[interior] - gg[interior]).max() < 1e-12
+    assert np.abs(solver.F[interior] - [1, 0, 0, 1]).max() > 1e-4  # it did deform
+
+
+@pytest.mark.parametrize("limiter", ["barth_jespersen", "venkatakrishnan"])
+def test_limiter_removes_the_overshoot_at_a_velocity_jump(block, limiter):
+    """Before the waves reach the ends, the limited profile stays within the initial range
+    and overshoots less than the unlimited one."""
+    def peak(lim):
+        case = block(divisions=(60, 4), end_time=2e-6, limiter=lim,
+                     velocity=["10*heaviside(0.005 - x)", "0"],
+                     boundary=[{"region": "ymin", "velocity": {"y": 0.0}},
+                               {"region": "ymax", "velocity": {"y": 0.0}}])
+        vx = run(load_case(case)).bodies["block"]["velocity"][:, 0]
+        return max(vx.max() - 10.0, -vx.min())
+    limited, unlimited = peak(limiter), peak("none")
+    assert limited < 1e-4 * 10.0
+    assert limited < unlimited
