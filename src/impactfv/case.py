@@ -125,11 +125,36 @@ class BodySpec(_Strict):
                          "or, from Python, a callable of the (n, 2) reference points")
 
 
+class WallSpec(_Strict):
+    point: tuple[float, float]
+    normal: tuple[float, float]
+    velocity: tuple[float, float] = (0.0, 0.0)
+
+    @model_validator(mode="after")
+    def _normal(self):
+        values = (*self.point, *self.normal, *self.velocity)
+        if not all(map(math.isfinite, values)):
+            raise ValueError("point, normal and velocity must be finite")
+        if math.hypot(*self.normal) == 0.0:
+            raise ValueError("normal must not be zero")
+        return self
+
+
 class ContactSpec(_Strict):
     bodies: list[str] = Field(min_length=1, max_length=2)
     model: Literal["stick", "slip"] = "slip"
-    wall: Optional[dict[str, Any]] = None
-    regions: Optional[list[str]] = None
+    wall: Optional[WallSpec] = None
+    regions: Optional[list[str]] = Field(None, min_length=1)
+
+    @model_validator(mode="after")
+    def _partner(self):
+        if self.wall is None and len(self.bodies) != 2:
+            raise ValueError("give two bodies, or one body and a wall = { point, normal }")
+        if self.wall is not None and len(self.bodies) != 1:
+            raise ValueError("a wall contact takes exactly one body")
+        if len(self.bodies) == 2 and self.bodies[0] == self.bodies[1]:
+            raise ValueError("self-contact of one body is not supported; name two bodies")
+        return self
 
 
 class CaseSpec(_Strict):

@@ -42,4 +42,13 @@ def check_report(case: Case) -> str:
     lines.append(f"memory: about {nbytes / 2**20:.1f} MiB for the state and work arrays "
                  f"({nbytes / model.n_nodes:.0f} bytes per node, {model.n_nodes} nodes, "
                  f"{model.n_edges} edges)")
+    if case.contacts:
+        from .contact import find_overlaps
+        for k, c in enumerate(case.contacts):
+            partner = "a rigid wall" if c.wall is not None else repr(c.bodies[1])
+            lines.append(f"contact[{k}]: {c.bodies[0]!r} with {partner}, model {c.model}")
+        problems = find_overlaps(case, model)
+        lines += [f"PROBLEM: {p} (run will refuse this case)" for p in problems]
+        if not problems:
+            lines.append("no bodies overlap at the start")
     return "\n".join(lines)

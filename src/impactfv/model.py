@@ -26,6 +26,7 @@ class BodyLayout:
     regions: dict[str, np.ndarray]  # boundary edges per region, global indices
     boundary_edges: np.ndarray  # all boundary edges (global), body on the left of a->b
     material: object = None
+    boundary_offset: int = 0    # index of its first boundary edge in the model's numbering
 
 
 @dataclass
@@ -118,7 +119,7 @@ def build_model(case: Case) -> Model:
             hb_edge.append(np.arange(len(bnd)) + n_bnd)
         layouts.append(BodyLayout(body.name, offset, offset + n, mesh.triangles + offset,
                                   {k: v + offset for k, v in mesh.regions.items()},
-                                  bnd + offset, body.material))
+                                  bnd + offset, body.material, n_bnd))
         offset += n
         n_bnd += len(bnd)
     X = np.concatenate(X)

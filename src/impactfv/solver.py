@@ -59,13 +59,25 @@ class FVSolver:
         self.vmin, self.vmax, self.phi = (np.empty((n, 2)) for _ in range(3))
         self.force = np.empty((n, 2))
         self.dF = np.empty((n, 4))
-        self.xdot = self.v  # positions move with the nodal velocity
         self.monitor_buf = np.zeros((len(m.bodies), 4))
+        self.dt = 0.0
+        if case.contacts:
+            from .contact import ContactSystem
+            self.contact = ContactSystem(case, m)
+            self.contact_state, self.contact_xdot = self.contact.state, self.contact.xdot
+            self.hb_in_contact = self.contact.hb_active
+        else:
+            self.contact = None
+            self.contact_state = np.zeros(n, np.int8)
+            self.contact_xdot = np.zeros((n, 2))
+            self.hb_in_contact = np.zeros(len(m.hb_node), bool)
 
     # -- one stage of rates
-    def rates(self):
+    def rates(self, stage=0):
         m = self.model
         K.compute_stress(self.F, m.node_mat, m.mat, self.P)
+        if self.contact is not None:
+            self.contact.stage(self.x, self.v, self.F, self.dt, stage)
         if self.order == 2:
             K.velocity_gradient(self.v, m.edges, m.C, m.hb_node, m.hb_other, m.hb_C, m.omega,
                                 self.grad)
@@ -74,8 +86,10 @@ class FVSolver:
                                  self.vmin, self.vmax, self.phi, self.grad)
         K.assemble_rates(self.v, self.F, self.P, self.grad, m.node_mat, m.mat, m.edges, m.C,
                          m.C_len, m.half, m.hb_node, m.hb_other, m.hb_C, m.hb_bc, m.bc_fix,
-                         m.bc_v, m.bc_t, self.order == 2, self.upwind_geometric, self.force,
-                         self.dF)
+                         m.bc_v, m.bc_t, self.order == 2, self.upwind_geometric,
+                         self.hb_in_contact, self.force, self.dF)
+        if self.contact is not None:
+            self.contact.apply(self.force, self.dF)
 
     def stable_dt(self) -> float:
         m = self.model
@@ -86,11 +100,14 @@ class FVSolver:
         self.v0[:] = self.v
         self.F0[:] = self.F
         self.x0[:] = self.x
-        for alpha in (0.0, 0.5):
-            self.rates()
+        self.dt = dt
+        for stage, alpha in enumerate((0.0, 0.5)):
+            self.rates(stage)
             K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
-                        self.force, self.dF, self.xdot, m.node_mat, m.mat, m.omega,
-                        m.fixed_mask, m.fixed_value)
+                        self.force, self.dF, self.contact_state, self.contact_xdot, m.node_mat, m.mat,
+                        m.omega, m.fixed_mask, m.fixed_value)
+        if self.contact is not None:
+            self.contact.end_step(self.x, self.v, self.F)
 
     def energies(self) -> np.ndarray:
         m = self.model
@@ -126,6 +143,9 @@ class FVSolver:
                 "von_mises": vm[s].copy(), "J": jac[s].copy(),
                 "F": self.F[s].reshape(-1, 2, 2).copy(),
             }
+            if self.contact is not None:
+                out[b.name]["contact_status"] = self.contact.state[s].copy()
+                out[b.name]["contact_pressure"] = -self.contact.tstar_n[s]
         return out
 
     def point_data(self) -> dict[str, np.ndarray]:
@@ -133,8 +153,12 @@ class FVSolver:
         n = m.n_nodes
         pressure, vm, jac = np.empty(n), np.empty(n), np.empty(n)
         K.point_fields(self.F, m.node_mat, m.mat, pressure, vm, jac)
-        return {"velocity": self.v, "displacement": self.x - m.X, "pressure": pressure,
+        data = {"velocity": self.v, "displacement": self.x - m.X, "pressure": pressure,
                 "von_mises": vm, "J": jac, "body": m.body_of_node.astype(float)}
+        if self.contact is not None:
+            data["contact_status"] = self.contact.state.astype(float)  # 0 open 1 stick 2 slip
+            data["contact_pressure"] = -self.contact.tstar_n
+        return data
 
 
 class History:
@@ -173,11 +197,19 @@ def run(case: Case, output_dir=None, progress: bool | None = None) -> RunResult:
     interval = run_cfg.output_interval or end / 10.0
     out = Path(output_dir) if output_dir is not None else None
     writer = SnapshotWriter(out, "fields") if out is not None else None
-    history = History(HISTORY_COLUMNS)
+    contact = solver.contact
+    history = History(HISTORY_COLUMNS + tuple(contact.history_columns() if contact else ()))
+    if contact is not None:
+        from .contact import find_overlaps
+        overlaps = find_overlaps(case, m)
+        if overlaps:
+            raise InputError(f"{case.source}: {overlaps[0]}")
+        contact.end_step(solver.x, solver.v, solver.F)  # initial gaps
 
     def record(t, dt):
         ke, se, px, py = solver.energies()
-        history.append((t, dt, ke, se, ke + se, px, py))
+        extra = contact.history_values() if contact is not None else []
+        history.append((t, dt, ke, se, ke + se, px, py, *extra))
 
     def snapshot(t):
         if writer is not None:

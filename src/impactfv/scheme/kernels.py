@@ -134,8 +134,12 @@ def limit_gradient(v, edges, half, node_length, kind, vmin, vmax, phi, grad):
 
 @njit(cache=True)
 def assemble_rates(v, F, P, grad, node_mat, mat, edges, C, C_len, half, hb_node, hb_other,
-                   hb_C, hb_bc, bc_fix, bc_v, bc_t, use_reconstruction, upwind_geometric, force, dF):
-    """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt."""
+                   hb_C, hb_bc, bc_fix, bc_v, bc_t, use_reconstruction, upwind_geometric, hb_in_contact,
+                   force, dF):
+    """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt.
+
+    Half-edges on a contact surface whose node is in contact are left to the contact module.
+    """
     force[:] = 0.0
     dF[:] = 0.0
     for e in range(edges.shape[0]):
@@ -192,9 +196,9 @@ def assemble_rates(v, F, P, grad, node_mat, mat, edges, C, C_len, half, hb_node,
         dF[b, 3] -= u2 * c2
     for h in range(hb_node.shape[0]):
         bc = hb_bc[h]
-        if bc < 0:
-            continue  # handled elsewhere (contact)
         a = hb_node[h]
+        if hb_in_contact[h]:
+            continue
         o = hb_other[h]
         k = node_mat[a]
         rho = mat[k, RHO]
@@ -226,15 +230,20 @@ def assemble_rates(v, F, P, grad, node_mat, mat, edges, C, C_len, half, hb_node,
 
 
 @njit(cache=True, parallel=True)
-def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, xdot, node_mat, mat, omega,
-              fixed_mask, fixed_value):
-    """U <- alpha U0 + (1 - alpha) (U + dt R): alpha = 0 for stage 1 and 1/2 for stage 2."""
+def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_xdot, node_mat,
+              mat, omega, fixed_mask, fixed_value):
+    """U <- alpha U0 + (1 - alpha) (U + dt R): alpha = 0 for stage 1 and 1/2 for stage 2.
+
+    Positions move with the nodal velocity, or at contact nodes with their contact velocity.
+    """
     beta = 1.0 - alpha
     for a in prange(v.shape[0]):
         inv_omega = 1.0 / omega[a]
         inv_m = inv_omega / mat[node_mat[a], RHO]
+        in_contact = contact_state[a] != 0
         for i in range(2):
-            x[a, i] = alpha * x0[a, i] + beta * (x[a, i] + dt * xdot[a, i])
+            xdot = contact_xdot[a, i] if in_contact else v[a, i]
+            x[a, i] = alpha * x0[a, i] + beta * (x[a, i] + dt * xdot)
             vn = alpha * v0[a, i] + beta * (v[a, i] + dt * force[a, i] * inv_m)
             if fixed_mask[a, i]:
                 vn = fixed_value[a, i]
