@@ -157,9 +157,9 @@ def _closest_segment(px, py, nax, nay, x, segs, x0, y0, h, nx, ny, start, items,
 
 
 @njit(cache=True)
-def _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, hb_active, mark):
+def _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, vhb, cover, w1, w2):
     """Spatial length of node a's contact half-edges whose outward normal is within 60 degrees
-    of n (Nanson: da n = cof(F) dA N); with ``mark`` they are flagged as in contact."""
+    of n (Nanson: da n = cof(F) dA N); they are covered by the contact with velocity w."""
     total = 0.0
     for k in range(hb_start[a], hb_start[a + 1]):
         h = hb_list[k]
@@ -168,28 +168,32 @@ def _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, hb_active, mark):
         length = math.sqrt(c1 * c1 + c2 * c2)
         if c1 * n1 + c2 * n2 > 0.5 * length:
             total += length
-            if mark:
-                hb_active[h] = True
+            vhb[h, 0] = w1
+            vhb[h, 1] = w2
+            cover[h] = 1.0
     return total
 
 
 @njit(cache=True)
-def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_C, hb_active,
-                 node_length, segs, x0, y0, h, nx, ny, start, items, pad, dt, weight,
+def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_other, vhb,
+                 cover, node_length, segs, x0, y0, h, nx, ny, start, items, pad, dt, weight,
                  slave_is_first, stick, was_active, apply, state, vstar, xdot, tstar_n,
                  force_acc, fsum):
-    """Nodes of one body against the segments of the other; returns the smallest gap.
+    """Nodes of one body against the surface of the other; returns the smallest gap.
 
-    A node is a candidate when its gap would close within dt, or when it was in contact at
-    the previous step and its gap is still below 5% of its edge length. A candidate whose
-    Riemann normal traction is compressive becomes active: it gets the contact velocity for
-    its F equation and positions, and ``weight`` times the contact force; the master
-    segment's nodes get the opposite force, split linearly. Its position also closes
-    ``weight`` of the remaining gap g within the stage (xdot = v* + weight g n / dt): a purely
-    kinematic correction, no force, which removes the gap left by activation at a discrete
-    step and any drift into penetration.
+    A slave node is a candidate when its gap to the closest master segment would close within
+    dt, or when it was in contact at the previous step and its gap is below 5% of its edge
+    length. Each of its contact half-edges (node to edge midpoint) is projected on the nearby
+    master segments and split where it overlaps the half-edges of the master nodes; every
+    overlap of length l gets the acoustic Riemann state between the two nodes' states, and
+    ``weight`` t* l acts on the slave node and -weight t* l on the master node. Overlaps in
+    tension are released. So each node receives the traction over its own dual boundary, and
+    a uniform contact pressure is transmitted exactly when the meshes do not match. The
+    slave's half-edges carry the overlap-averaged v* in its F equation; its position closes
+    ``weight`` of the remaining gap within the stage (a kinematic correction, no force).
     """
     gmin = np.inf
+    sign = 1.0 if slave_is_first else -1.0
     for i in range(slave.shape[0]):
         a = slave[i]
         s, xi, dist = _closest_segment(x[a, 0], x[a, 1], nrm[a, 0], nrm[a, 1], x, segs, x0,
@@ -203,9 +207,7 @@ def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_
         L = math.sqrt(d1 * d1 + d2 * d2)
         n1 = -d2 / L  # from the slave into the master: minus the master's outward normal
         n2 = d1 / L
-        xp1 = x[p, 0] + xi * d1
-        xp2 = x[p, 1] + xi * d2
-        g = (xp1 - x[a, 0]) * n1 + (xp2 - x[a, 1]) * n2
+        g = (x[p, 0] + xi * d1 - x[a, 0]) * n1 + (x[p, 1] + xi * d2 - x[a, 1]) * n2
         if g < gmin:
             gmin = g
         if not apply:
@@ -217,48 +219,84 @@ def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_
         staying = was_active[a] > 0 and g <= 0.05 * node_length[a]
         if not (closing or staying):
             continue
-        sB11 = (1.0 - xi) * sig[p, 0] + xi * sig[q, 0]
-        sB12 = (1.0 - xi) * sig[p, 1] + xi * sig[q, 1]
-        sB22 = (1.0 - xi) * sig[p, 2] + xi * sig[q, 2]
-        tA1 = sig[a, 0] * n1 + sig[a, 1] * n2
-        tA2 = sig[a, 1] * n1 + sig[a, 2] * n2
-        tB1 = sB11 * n1 + sB12 * n2
-        tB2 = sB12 * n1 + sB22 * n2
         kA = node_mat[a]
-        kB = node_mat[p]
         zpA = mat[kA, RHO] * mat[kA, CP]
         zsA = mat[kA, RHO] * mat[kA, CS]
-        zpB = mat[kB, RHO] * mat[kB, CP]
-        zsB = mat[kB, RHO] * mat[kB, CS]
-        tn, ts, vn, vsA, vsB = contact_state(v[a, 0], v[a, 1], tA1, tA2, vB1, vB2, tB1, tB2,
-                                             n1, n2, zpA, zsA, zpB, zsB, stick)
-        if tn > 0.0:
-            continue  # the interface would be in tension: release
-        length = _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, hb_active, True)
-        if length == 0.0:
+        reach = dist + 0.25 * L
+        l_total = 0.0
+        vs1 = 0.0
+        vs2 = 0.0
+        tn_sum = 0.0
+        cell = int((x[a, 1] - y0) / h) * nx + int((x[a, 0] - x0) / h)
+        for k in range(hb_start[a], hb_start[a + 1]):
+            hh = hb_list[k]
+            o = hb_other[hh]
+            m1 = 0.5 * (x[a, 0] + x[o, 0])
+            m2 = 0.5 * (x[a, 1] + x[o, 1])
+            lh = math.sqrt((m1 - x[a, 0]) ** 2 + (m2 - x[a, 1]) ** 2)
+            for it in range(start[cell], start[cell + 1]):
+                sm = items[it]
+                mp = segs[sm, 0]
+                mq = segs[sm, 1]
+                e1 = x[mq, 0] - x[mp, 0]
+                e2 = x[mq, 1] - x[mp, 1]
+                Ls = math.sqrt(e1 * e1 + e2 * e2)
+                c1 = -e2 / Ls  # common normal for this master segment
+                c2 = e1 / Ls
+                # the half-edge must face the segment: its direction is across c
+                u0 = ((x[a, 0] - x[mp, 0]) * e1 + (x[a, 1] - x[mp, 1]) * e2) / (Ls * Ls)
+                u1 = ((m1 - x[mp, 0]) * e1 + (m2 - x[mp, 1]) * e2) / (Ls * Ls)
+                off = abs((x[a, 0] - x[mp, 0]) * c1 + (x[a, 1] - x[mp, 1]) * c2)
+                if off > reach or c1 * n1 + c2 * n2 < 0.5:
+                    continue
+                lo = min(u0, u1)
+                hi = max(u0, u1)
+                for side in range(2):
+                    b = mp if side == 0 else mq
+                    ov = min(hi, 0.5 + 0.5 * side) - max(lo, 0.5 * side)
+                    if ov <= 0.0:
+                        continue
+                    ell = ov * Ls
+                    kB = node_mat[b]
+                    tA1 = sig[a, 0] * c1 + sig[a, 1] * c2
+                    tA2 = sig[a, 1] * c1 + sig[a, 2] * c2
+                    tB1 = sig[b, 0] * c1 + sig[b, 1] * c2
+                    tB2 = sig[b, 1] * c1 + sig[b, 2] * c2
+                    tn, ts, vn, vsA, vsB = contact_state(
+                        v[a, 0], v[a, 1], tA1, tA2, v[b, 0], v[b, 1], tB1, tB2, c1, c2, zpA,
+                        zsA, mat[kB, RHO] * mat[kB, CP], mat[kB, RHO] * mat[kB, CS], stick)
+                    if tn > 0.0:
+                        continue  # this overlap would be in tension: released
+                    f1 = weight * ell * (tn * c1 - ts * c2)
+                    f2 = weight * ell * (tn * c2 + ts * c1)
+                    force_acc[a, 0] += f1
+                    force_acc[a, 1] += f2
+                    force_acc[b, 0] -= f1
+                    force_acc[b, 1] -= f2
+                    fsum[0] += sign * f1
+                    fsum[1] += sign * f2
+                    w1 = vn * c1 - vsA * c2
+                    w2 = vn * c2 + vsA * c1
+                    vhb[hh, 0] += w1 * ell / lh
+                    vhb[hh, 1] += w2 * ell / lh
+                    cover[hh] += ell / lh
+                    l_total += ell
+                    vs1 += w1 * ell
+                    vs2 += w2 * ell
+                    tn_sum += tn * ell
+        if l_total == 0.0:
             continue
         state[a] = STICK if stick else SLIP
-        vstar[a, 0] = vn * n1 - vsA * n2
-        vstar[a, 1] = vn * n2 + vsA * n1
+        vstar[a, 0] = vs1 / l_total
+        vstar[a, 1] = vs2 / l_total
         xdot[a, 0] = vstar[a, 0] + weight * g * n1 / dt
         xdot[a, 1] = vstar[a, 1] + weight * g * n2 / dt
-        tstar_n[a] = tn
-        f1 = weight * length * (tn * n1 - ts * n2)
-        f2 = weight * length * (tn * n2 + ts * n1)
-        force_acc[a, 0] += f1
-        force_acc[a, 1] += f2
-        force_acc[p, 0] -= (1.0 - xi) * f1
-        force_acc[p, 1] -= (1.0 - xi) * f2
-        force_acc[q, 0] -= xi * f1
-        force_acc[q, 1] -= xi * f2
-        sign = 1.0 if slave_is_first else -1.0
-        fsum[0] += sign * f1
-        fsum[1] += sign * f2
+        tstar_n[a] = tn_sum / l_total
     return gmin
 
 
 @njit(cache=True)
-def wall_pass(x, v, F, sig, node_mat, mat, slave, hb_start, hb_list, hb_C, hb_active,
+def wall_pass(x, v, F, sig, node_mat, mat, slave, hb_start, hb_list, hb_C, vhb, cover,
               node_length, p0, nw, wall_v, dt, stick, was_active, apply, state, vstar, xdot,
               tstar_n, force_acc, fsum):
     """Nodes of one body against a rigid plane through p0 with normal nw (out of the wall)."""
@@ -286,7 +324,8 @@ def wall_pass(x, v, F, sig, node_mat, mat, slave, hb_start, hb_list, hb_C, hb_ac
                                      wall_v[1], stick)
         if tn > 0.0:
             continue
-        length = _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, hb_active, True)
+        length = _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, vhb, cover,
+                                vn * n1 - vsA * n2, vn * n2 + vsA * n1)
         if length == 0.0:
             continue
         state[a] = STICK if stick else SLIP
@@ -305,7 +344,7 @@ def wall_pass(x, v, F, sig, node_mat, mat, slave, hb_start, hb_list, hb_C, hb_ac
 
 
 @njit(cache=True)
-def reset_surface(nodes, contact_hb, state, force_acc, tstar_n, hb_active):
+def reset_surface(nodes, contact_hb, state, force_acc, tstar_n, vhb, cover):
     for i in range(nodes.shape[0]):
         a = nodes[i]
         state[a] = OPEN
@@ -313,13 +352,16 @@ def reset_surface(nodes, contact_hb, state, force_acc, tstar_n, hb_active):
         force_acc[a, 1] = 0.0
         tstar_n[a] = 0.0
     for k in range(contact_hb.shape[0]):
-        hb_active[contact_hb[k]] = False
+        h = contact_hb[k]
+        vhb[h, 0] = 0.0
+        vhb[h, 1] = 0.0
+        cover[h] = 0.0
 
 
 @njit(cache=True)
-def apply_contact(nodes, contact_hb, hb_node, hb_C, hb_active, state, vstar, xdot, force_acc,
-                  fixed_mask, fixed_value, force, dF):
-    """Add contact forces; half-edges in contact carry v* in the F equation.
+def apply_contact(nodes, contact_hb, hb_node, hb_C, hb_active, vhb, cover, state, vstar, xdot,
+                  force_acc, fixed_mask, fixed_value, force, dF):
+    """Add contact forces; half-edges in contact carry their mean v* in the F equation.
 
     Velocity components prescribed by a boundary condition (e.g. a roller side meeting the
     contact face at a corner) win over the contact velocity.
@@ -335,10 +377,19 @@ def apply_contact(nodes, contact_hb, hb_node, hb_C, hb_active, state, vstar, xdo
                     xdot[a, c] = fixed_value[a, c]
     for k in range(contact_hb.shape[0]):
         h = contact_hb[k]
+        hb_active[h] = cover[h] > 0.0
         if not hb_active[h]:
             continue
         a = hb_node[h]
-        dF[a, 0] += vstar[a, 0] * hb_C[h, 0]
-        dF[a, 1] += vstar[a, 0] * hb_C[h, 1]
-        dF[a, 2] += vstar[a, 1] * hb_C[h, 0]
-        dF[a, 3] += vstar[a, 1] * hb_C[h, 1]
+        w1 = vhb[h, 0] / cover[h]
+        w2 = vhb[h, 1] / cover[h]
+        for c in range(2):
+            if fixed_mask[a, c]:
+                if c == 0:
+                    w1 = fixed_value[a, 0]
+                else:
+                    w2 = fixed_value[a, 1]
+        dF[a, 0] += w1 * hb_C[h, 0]
+        dF[a, 1] += w1 * hb_C[h, 1]
+        dF[a, 2] += w2 * hb_C[h, 0]
+        dF[a, 3] += w2 * hb_C[h, 1]

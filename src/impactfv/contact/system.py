@@ -48,6 +48,8 @@ class ContactSystem:
             [s.nodes for p in self.pairs for s in p["surfaces"]]))
         self.contact_hb = np.unique(np.concatenate(contact_hb))
         self.hb_active = np.zeros(len(model.hb_node), bool)
+        self.vhb = np.zeros((len(model.hb_node), 2))  # overlap-weighted v* per half-edge
+        self.cover = np.zeros(len(model.hb_node))     # fraction of each half-edge in contact
         # contact half-edges of each node (CSR over all nodes)
         owners = model.hb_node[self.contact_hb]
         order = np.argsort(owners, kind="stable")
@@ -91,7 +93,7 @@ class ContactSystem:
             nodes = self.surface_nodes
             self.was_active[nodes] = np.maximum(self.was_active[nodes], self.state[nodes])
         CK.reset_surface(self.surface_nodes, self.contact_hb, self.state, self.force_acc,
-                         self.tstar_n, self.hb_active)
+                         self.tstar_n, self.vhb, self.cover)
         self._geometry(x, F)
         for pair in self.pairs:
             fsum = pair["fsum"][stage_index]
@@ -108,10 +110,10 @@ class ContactSystem:
     def _passes(self, pair, x, v, F, dt, apply, fsum):
         m = self.model
         surfaces = pair["surfaces"]
-        common = (self.hb_start, self.hb_list, m.hb_C, self.hb_active, m.node_length)
         if "nw" in pair:
             return CK.wall_pass(x, v, F, self.sig, m.node_mat, m.mat, surfaces[0].nodes,
-                                *common, pair["p0"], pair["nw"], pair["wall_v"], dt,
+                                self.hb_start, self.hb_list, m.hb_C, self.vhb, self.cover,
+                                m.node_length, pair["p0"], pair["nw"], pair["wall_v"], dt,
                                 pair["stick"], self.was_active, apply, self.state, self.vstar,
                                 self.xdot, self.tstar_n, self.force_acc, fsum)
         gmin = np.inf
@@ -119,7 +121,8 @@ class ContactSystem:
             segs = surfaces[master].segs
             bins = CK.build_bins(x, segs, self.pad)
             g = CK.contact_pass(x, v, F, self.sig, m.node_mat, m.mat, surfaces[slave].nodes,
-                                self.nrm, *common, segs, *bins, self.pad, dt, 0.5, first,
+                                self.nrm, self.hb_start, self.hb_list, m.hb_other, self.vhb,
+                                self.cover, m.node_length, segs, *bins, self.pad, dt, 0.5, first,
                                 pair["stick"], self.was_active, apply, self.state, self.vstar,
                                 self.xdot, self.tstar_n, self.force_acc, fsum)
             gmin = min(gmin, g)
@@ -128,7 +131,7 @@ class ContactSystem:
     def apply(self, force, dF):
         m = self.model
         CK.apply_contact(self.surface_nodes, self.contact_hb, m.hb_node, m.hb_C, self.hb_active,
-                         self.state, self.vstar, self.xdot, self.force_acc, m.fixed_mask,
+                         self.vhb, self.cover, self.state, self.vstar, self.xdot, self.force_acc, m.fixed_mask,
                          m.fixed_value, force, dF)
 
     def end_step(self, x, v, F):
