@@ -29,12 +29,14 @@ class ContactSystem:
         self.pairs = []
         contact_hb = []
         for k, spec in enumerate(case.contacts):
-            surfaces = []
-            for name in spec.bodies:
-                surfaces.append(self._surface(model, name, spec.regions, k))
+            # passes run in body order whatever the order in the case, so that swapping the
+            # names in `bodies` gives bit-identical results; `flip` restores the sign
+            names = sorted(spec.bodies, key=model.body_index)
+            surfaces = [self._surface(model, name, spec.regions, k) for name in names]
             contact_hb += [s.hb for s in surfaces]
             entry = {"spec": spec, "surfaces": surfaces, "stick": spec.model == "stick",
-                     "fsum": np.zeros((2, 2)), "gap": np.nan}
+                     "fsum": np.zeros((2, 2)), "gap": np.nan,
+                     "flip": -1.0 if names[0] != spec.bodies[0] else 1.0}
             if spec.wall is not None:
                 nw = np.array(spec.wall.normal, float)
                 entry["p0"] = np.array(spec.wall.point, float)
@@ -150,6 +152,6 @@ class ContactSystem:
         """Force on the first body (Runge-Kutta average of the two stages) and smallest gap."""
         out = []
         for pair in self.pairs:
-            f = 0.5 * (pair["fsum"][0] + pair["fsum"][1])
+            f = pair["flip"] * 0.5 * (pair["fsum"][0] + pair["fsum"][1])
             out += [f[0], f[1], pair["gap"]]
         return out
