@@ -12,6 +12,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import InputError, SimulationError
+from .solver import Interrupted
 
 
 def main(argv=None) -> int:
@@ -23,6 +24,10 @@ def main(argv=None) -> int:
     p_run.add_argument("case", help="TOML case file")
     p_run.add_argument("-o", "--output", help="output folder (default results/<case stem>)")
     p_run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_run.add_argument("--restart", metavar="DIR",
+                       help="continue the run in DIR from its newest checkpoint")
+    p_run.add_argument("--checkpoint-every", metavar="T", type=_positive_float,
+                       help="write a checkpoint every T seconds of simulated time")
     p_check = sub.add_parser("check", help="check a case and report mesh, time step, memory")
     p_check.add_argument("case")
     p_cmp = sub.add_parser("compare", help="run the FV and FE methods on a case and compare")
@@ -50,7 +55,20 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("impactfv: interrupted", file=sys.stderr)
         return 130
+    except Interrupted as exc:
+        print(f"impactfv: {exc}; continue with --restart", file=sys.stderr)
+        return 128 + int(exc.signum)
     return 0
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a positive time in seconds, got {text!r}")
+    return value
 
 
 def _run(args) -> int:
@@ -58,9 +76,16 @@ def _run(args) -> int:
     from .solver import run
 
     case = load_case(args.case)
-    out = Path(args.output) if args.output else Path("results") / Path(args.case).stem
+    if args.restart:
+        out = Path(args.restart)
+        if not out.is_dir():
+            raise InputError(f"{out}: --restart expects an existing output folder")
+    else:
+        out = Path(args.output) if args.output else Path("results") / Path(args.case).stem
     _check_output_dir(out)
-    result = run(case, out, progress=False if args.no_progress else None)
+    result = run(case, out, progress=False if args.no_progress else None,
+                 restart=bool(args.restart), checkpoint_every=args.checkpoint_every,
+                 handle_signals=True)
     s = result.summary
     print(f"{s['status']}: {s['steps']} steps to t = {s['end_time']:.4e} s, {s['nodes']} nodes, "
           f"{s['wall_time_s']:.2f} s wall, "

@@ -181,14 +181,34 @@ class History:
         return {k: self.data[k][:self.n].copy() for k in self.columns}
 
 
-def run(case: Case, output_dir=None, progress: bool | None = None) -> RunResult:
+class Interrupted(Exception):
+    """The run was stopped by a signal after writing a checkpoint; CLI exit 128 + signum."""
+
+    def __init__(self, signum, checkpoint):
+        super().__init__(f"interrupted by signal {signum}; checkpoint written to {checkpoint}")
+        self.signum = signum
+        self.checkpoint = checkpoint
+
+
+def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool = False,
+        checkpoint_every: float | None = None, handle_signals: bool = False) -> RunResult:
     """Run a validated case. Writes files only when ``output_dir`` is given.
 
     ``progress``: show a progress bar (default: when standard error is a terminal).
+    ``restart``: continue from the newest checkpoint in ``output_dir``.
+    ``checkpoint_every``: write a checkpoint every so many seconds of simulated time.
+    ``handle_signals``: on SIGINT/SIGTERM write a checkpoint and valid outputs, then raise
+    :class:`Interrupted` (the CLI turns it into exit code 130 or 143).
     """
     if case.run.method != "fv":
         from .fem.driver import run_fem_case
         return run_fem_case(case, output_dir, progress)
+    if (restart or checkpoint_every or handle_signals) and output_dir is None:
+        raise InputError("restart and checkpoints need an output folder")
+    if checkpoint_every is not None and not (checkpoint_every > 0 and
+                                             math.isfinite(checkpoint_every)):
+        raise InputError(f"--checkpoint-every: expected a positive time in seconds, got "
+                         f"{checkpoint_every}")
     wall_start = _time.perf_counter()
     solver = FVSolver(case)
     m = solver.model
@@ -218,12 +238,21 @@ def run(case: Case, output_dir=None, progress: bool | None = None) -> RunResult:
 
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
-    t, steps = 0.0, 0
-    record(0.0, 0.0)
-    snapshot(0.0)
-    next_output = interval
+    fingerprint = case_fingerprint(case)
+    if restart:
+        t, steps, next_output = load_checkpoint(out, fingerprint, solver, history, writer)
+    else:
+        t, steps = 0.0, 0
+        record(0.0, 0.0)
+        snapshot(0.0)
+        next_output = interval
+    next_checkpoint = (math.floor(t / checkpoint_every + 1e-9) + 1) * checkpoint_every \
+        if checkpoint_every else math.inf
     bar = _progress_bar(progress, end)
+    if bar is not None and t > 0:
+        bar.update(t)
     status = "completed"
+    stop = _SignalFlag(handle_signals)
     loop_start = _time.perf_counter()
     try:
         while t < end * (1 - 1e-12):
@@ -248,8 +277,19 @@ def run(case: Case, output_dir=None, progress: bool | None = None) -> RunResult:
                     else math.inf
                 while next_output <= t * (1 + 1e-12):
                     next_output += interval
+            if t >= next_checkpoint * (1 - 1e-12):
+                save_checkpoint(out, fingerprint, solver, history, writer, t, steps,
+                                next_output)
+                while next_checkpoint <= t * (1 + 1e-12):
+                    next_checkpoint += checkpoint_every
             if bar is not None:
                 bar.update(t - bar.n)
+            if stop.signum is not None:
+                path = save_checkpoint(out, fingerprint, solver, history, writer, t, steps,
+                                       next_output)
+                _finish(out, history, solver, case, steps, t, wall_start, loop_start,
+                        "interrupted")
+                raise Interrupted(stop.signum, path)
             if steps >= run_cfg.max_steps:
                 status = "stopped at max_steps"
                 break
@@ -258,11 +298,102 @@ def run(case: Case, output_dir=None, progress: bool | None = None) -> RunResult:
         _finish(out, history, solver, case, steps, t, wall_start, loop_start, status)
         raise
     finally:
+        stop.restore()
         if bar is not None:
             bar.close()
     summary = _finish(out, history, solver, case, steps, t, wall_start, loop_start, status)
     return RunResult(history.arrays(), solver.body_fields(), summary, out,
                      writer.entries if writer else [])
+
+
+class _SignalFlag:
+    """Records SIGINT/SIGTERM so the loop can stop cleanly between two steps."""
+
+    def __init__(self, active):
+        import signal
+        import threading
+
+        self.signum = None
+        self.previous = {}
+        if active and threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self.previous[sig] = signal.signal(sig, self._handle)
+
+    def _handle(self, signum, frame):
+        self.signum = signum
+
+    def restore(self):
+        import signal
+        for sig, handler in self.previous.items():
+            signal.signal(sig, handler)
+        self.previous = {}
+
+
+def case_fingerprint(case: Case) -> str:
+    """A hash of the validated case, so a checkpoint is never continued with another case."""
+    import hashlib
+    text = json.dumps(case.spec.model_dump(mode="python"), sort_keys=True,
+                      default=lambda o: getattr(o, "__qualname__", type(o).__name__))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def save_checkpoint(out, fingerprint, solver, history, writer, t, steps, next_output) -> Path:
+    """Atomic .npz checkpoint (no pickle) of everything the loop needs to continue."""
+    import io as _io
+
+    from .io.writers import _atomic_replace
+    arrays = {"v": solver.v, "F": solver.F, "x": solver.x, "t": np.array(t),
+              "steps": np.array(steps), "next_output": np.array(next_output),
+              "fingerprint": np.array(fingerprint), "version": np.array(__version__),
+              "history_columns": np.array(history.columns),
+              "snapshot_times": np.array([e[0] for e in writer.entries], float),
+              "snapshot_files": np.array([e[1] for e in writer.entries] or [""])}
+    for k in history.columns:
+        arrays["h_" + k] = history.data[k][:history.n]
+    if solver.contact is not None:
+        arrays["was_active"] = solver.contact.was_active
+    folder = Path(out) / "checkpoints"
+    path = folder / f"checkpoint_{steps:09d}.npz"
+
+    def dump(fh):
+        buf = _io.BytesIO()
+        np.savez(buf, **arrays)
+        fh.write(buf.getvalue())
+    _atomic_replace(path, dump)
+    return path
+
+
+def load_checkpoint(out, fingerprint, solver, history, writer):
+    folder = Path(out) / "checkpoints"
+    files = sorted(folder.glob("checkpoint_*.npz")) if folder.is_dir() else []
+    if not files:
+        raise InputError(f"{folder}: no checkpoint to restart from")
+    path = files[-1]
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if str(data["fingerprint"]) != fingerprint:
+                raise InputError(f"{path}: checkpoint was written for a different case")
+            if list(data["history_columns"]) != history.columns:
+                raise InputError(f"{path}: checkpoint history columns do not match the case")
+            for name in ("v", "F", "x"):
+                target = getattr(solver, name)
+                if data[name].shape != target.shape:
+                    raise InputError(f"{path}: checkpoint {name} has shape {data[name].shape}, "
+                                     f"the case gives {target.shape}")
+                target[:] = data[name]
+            n = len(data["h_time"])
+            for k in history.columns:
+                history.data[k] = np.concatenate([data["h_" + k], np.zeros(max(n, 1024))])
+            history.n = n
+            times = data["snapshot_times"]
+            files_ = [str(f) for f in data["snapshot_files"]][:len(times)]
+            writer.entries = list(zip(map(float, times), files_))
+            if solver.contact is not None:
+                solver.contact.end_step(solver.x, solver.v, solver.F)
+                solver.contact.was_active[:] = data["was_active"]
+            return float(data["t"]), int(data["steps"]), float(data["next_output"])
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError(f"{path}: unreadable checkpoint ({exc})") from None
 
 
 def _finish(out, history, solver, case, steps, t, wall_start, loop_start, status):

@@ -359,6 +359,14 @@ def reset_surface(nodes, contact_hb, state, force_acc, tstar_n, vhb, cover):
 
 
 @njit(cache=True)
+def mark_contact_halfedges(contact_hb, cover, hb_active):
+    """Half-edges touched by a contact overlap leave the free-surface flux to the contact."""
+    for k in range(contact_hb.shape[0]):
+        h = contact_hb[k]
+        hb_active[h] = cover[h] > 0.0
+
+
+@njit(cache=True)
 def apply_contact(nodes, contact_hb, hb_node, hb_C, hb_active, vhb, cover, state, vstar, xdot,
                   force_acc, fixed_mask, fixed_value, force, dF):
     """Add contact forces; half-edges in contact carry their mean v* in the F equation.
@@ -377,7 +385,6 @@ def apply_contact(nodes, contact_hb, hb_node, hb_C, hb_active, vhb, cover, state
                     xdot[a, c] = fixed_value[a, c]
     for k in range(contact_hb.shape[0]):
         h = contact_hb[k]
-        hb_active[h] = cover[h] > 0.0
         if not hb_active[h]:
             continue
         a = hb_node[h]

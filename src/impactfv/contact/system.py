@@ -101,6 +101,7 @@ class ContactSystem:
             fsum = pair["fsum"][stage_index]
             fsum[:] = 0.0
             self._passes(pair, x, v, F, dt, True, fsum)
+        CK.mark_contact_halfedges(self.contact_hb, self.cover, self.hb_active)
 
     def _geometry(self, x, F):
         m = self.model
