@@ -253,3 +253,33 @@ def test_fuzzed_expressions_never_escape(text):
         load_case(case)
     except InputError:
         pass
+
+
+COORD = st.one_of(st.floats(-1e-3, 1e-3), st.sampled_from([math.nan, math.inf, 0.0, 1e-3]))
+
+
+@settings(max_examples=40, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(st.lists(st.tuples(COORD, COORD), min_size=0, max_size=9),
+       st.lists(st.tuples(st.integers(-1, 9), st.integers(-1, 9), st.integers(-1, 9)),
+                min_size=0, max_size=8))
+def test_fuzzed_mesh_files_give_a_run_or_an_input_error(tmp_path_factory, points, triangles):
+    folder = tmp_path_factory.mktemp("mesh")
+    pts = np.array(points, float).reshape(-1, 2)
+    tri = np.array(triangles, int).reshape(-1, 3)
+    try:
+        meshio.write(folder / "m.msh", meshio.Mesh(np.column_stack([pts, np.zeros(len(pts))]),
+                                                   [("triangle", tri)]),
+                     file_format="gmsh22", binary=False)
+    except Exception:
+        (folder / "m.msh").write_text("$MeshFormat\nnot a mesh\n")
+    case = {"run": {"end_time": 1e-8},
+            "material": [{"name": "m", "density": 1000.0, "youngs_modulus": 1e6,
+                          "poisson_ratio": 0.3}],
+            "body": [{"name": "b", "material": "m", "velocity": [1.0, 0.0],
+                      "mesh": {"file": "m.msh"}}]}
+    try:
+        result = run(load_case(case, base_dir=folder))
+    except (InputError, SimulationError):
+        return
+    assert result.summary["status"] == "completed"
