@@ -250,13 +250,23 @@ def _history_figure(results, ref, path):
         h = r.history
         t = h["time"] * 1e6
         a1.plot(t, contact_force(h, ref) / 1e6, color=COLORS[method], lw=1.2,
-                label=LABELS[method])
+                label=LABELS[method], zorder=3 if method == "fv" else 2)
         a2.plot(t, (h["kinetic_energy"] + h["strain_energy"]) / 1e3, color=COLORS[method],
                 lw=1.5, label=f"{LABELS[method]}: kinetic + strain")
         a2.plot(t, h["kinetic_energy"] / 1e3, color=COLORS[method], lw=1, ls="--")
         a2.plot(t, h["strain_energy"] / 1e3, color=COLORS[method], lw=1, ls=":")
     a1.axhline(ref["p_ref"] * ref["width"] / 1e6, color="k", lw=0.8, ls="--",
                label="1D acoustic: rho c_p v0 x width")
+    # start shortly before the first contact: the free flight before it is uneventful
+    starts = [np.nan]
+    for r in results.values():
+        on = np.flatnonzero(contact_force(r.history, ref) > 0)
+        if len(on):
+            starts.append(r.history["time"][on[0]])
+    end = max(r.history["time"][-1] for r in results.values())
+    if np.isfinite(np.nanmin(starts)):
+        t0 = np.nanmin(starts)
+        a1.set_xlim(max(0.0, t0 - 0.1 * (end - t0)) * 1e6, end * 1e6)
     a1.set_ylabel("contact force (kN per mm thickness)")
     a1.legend(fontsize=8)
     a1.grid(alpha=0.3)

@@ -175,6 +175,16 @@ def _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, vhb, cover, w1, w2):
 
 
 @njit(cache=True)
+def _contact_motion(a, v, vstar, n1, n2, closing, xdot):
+    """Velocity moving a contact node: the contact normal velocity plus the gap-closing rate
+    along n, the node's own velocity across it (so that its tangential motion stays the one
+    its F equation sees)."""
+    un = vstar[a, 0] * n1 + vstar[a, 1] * n2 + closing - (v[a, 0] * n1 + v[a, 1] * n2)
+    xdot[a, 0] = v[a, 0] + un * n1
+    xdot[a, 1] = v[a, 1] + un * n2
+
+
+@njit(cache=True)
 def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_other, vhb,
                  cover, node_length, segs, x0, y0, h, nx, ny, start, items, pad, dt, weight,
                  slave_is_first, stick, was_active, apply, state, vstar, xdot, tstar_n,
@@ -189,8 +199,9 @@ def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_
     ``weight`` t* l acts on the slave node and -weight t* l on the master node. Overlaps in
     tension are released. So each node receives the traction over its own dual boundary, and
     a uniform contact pressure is transmitted exactly when the meshes do not match. The
-    slave's half-edges carry the overlap-averaged v* in its F equation; its position closes
-    ``weight`` of the remaining gap within the stage (a kinematic correction, no force).
+    slave's half-edges carry the overlap-averaged v* in its F equation; its position moves
+    with the contact normal velocity and closes ``weight`` of the remaining gap within the
+    stage (a kinematic correction, no force).
     """
     gmin = np.inf
     sign = 1.0 if slave_is_first else -1.0
@@ -289,8 +300,7 @@ def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_
         state[a] = STICK if stick else SLIP
         vstar[a, 0] = vs1 / l_total
         vstar[a, 1] = vs2 / l_total
-        xdot[a, 0] = vstar[a, 0] + weight * g * n1 / dt
-        xdot[a, 1] = vstar[a, 1] + weight * g * n2 / dt
+        _contact_motion(a, v, vstar, n1, n2, weight * g / dt, xdot)
         tstar_n[a] = tn_sum / l_total
     return gmin
 
@@ -331,8 +341,7 @@ def wall_pass(x, v, F, sig, node_mat, mat, slave, hb_start, hb_list, hb_C, vhb, 
         state[a] = STICK if stick else SLIP
         vstar[a, 0] = vn * n1 - vsA * n2
         vstar[a, 1] = vn * n2 + vsA * n1
-        xdot[a, 0] = vstar[a, 0] - g * nw[0] / dt
-        xdot[a, 1] = vstar[a, 1] - g * nw[1] / dt
+        _contact_motion(a, v, vstar, n1, n2, g / dt, xdot)
         tstar_n[a] = tn
         f1 = length * (tn * n1 - ts * n2)
         f2 = length * (tn * n2 + ts * n1)

@@ -1,0 +1,183 @@
+"""FV against the explicit FE baselines on a coarse version of examples/bars_impact.toml.
+
+Two 10 mm x 2 mm plane-strain bars (nearly incompressible neo-Hookean, nu = 0.495), 50 x 10
+cells each (h = 0.2 mm, as in the full example), free lateral sides, +-50 m/s, gap 0.4 mm:
+impact at t_i = 4 us.  End time 1.5 t_i + L / c_p = 6 + 6.72 = 12.7 us: the pulse has crossed
+most of each bar (the front is at 8.7 mm of 10 mm) and the contact is still closed, so the
+pressure field is loaded almost everywhere and the contact phase is 8.7 us long.
+
+Measured here (roughness = median over loaded nodes of |p - neighbour mean| / rho c_p v0):
+
+    method    roughness  plateau force (N/m)  max penetration / h   (E_end / E_0)
+    fv        0.0072     2.031e5              1.1e-3                0.944 (upwind dissipation)
+    fem-t3    0.0179     2.039e5              8.7e-6                0.991 with contact work
+    fem-q4md  0.0123     2.103e5              3.7e-6                0.992 with contact work
+
+The FV roughness is 0.40 of the T3 one, not the 1/3 aimed at: that assertion is kept as a
+strict xfail (test_fv_roughness_third_of_t3) so that it is visible, not silently weakened.
+"""
+
+import numpy as np
+import pytest
+
+from impactfv.case import load_case
+from impactfv.compare import compare_case, pressure_roughness
+from impactfv.materials import Material
+
+MAT = {"name": "copper", "model": "neo_hookean", "density": 8930.0,
+       "youngs_modulus": 585.0e6, "poisson_ratio": 0.495}
+L, W, GAP, V0, DIV = 0.01, 0.002, 4e-4, 50.0, (50, 10)
+C_P = Material(**MAT).p_wave_speed
+T_IMPACT = GAP / (2 * V0)
+END = 1.5 * T_IMPACT + L / C_P
+
+
+def coarse_bars(end_time=END):
+    def body(name, x0, v):
+        return {"name": name, "material": "copper", "velocity": [v, 0.0],
+                "mesh": {"generator": "rectangle", "origin": [x0, 0.0], "size": [L, W],
+                         "divisions": list(DIV)}}
+    return {"run": {"end_time": end_time, "output_interval": end_time / 2},
+            "material": [MAT],
+            "body": [body("left", -L - GAP / 2, V0), body("right", GAP / 2, -V0)],
+            "contact": [{"bodies": ["left", "right"], "model": "slip"}]}
+
+
+@pytest.fixture(scope="module")
+def comparison(tmp_path_factory):
+    out = tmp_path_factory.mktemp("compare")
+    res = compare_case(load_case(coarse_bars()), out, figures=True, verbose=False)
+    res["by_method"] = {r["method"]: r for r in res["rows"]}
+    return res
+
+
+def test_outputs_written(comparison):
+    out = comparison["output_dir"]
+    for name in ("pressure_contours.png", "histories.png", "comparison.csv"):
+        assert (out / name).stat().st_size > 0
+    lines = (out / "comparison.csv").read_text().splitlines()
+    assert lines[0].startswith("method,") and len(lines) == 4
+    assert abs(comparison["reference"]["p_ref"] - 664e6) < 1e6
+
+
+def test_pressure_roughness(comparison):
+    r = comparison["by_method"]
+    fv, t3, q4 = (r[m]["roughness"] for m in ("fv", "fem-t3", "fem-q4md"))
+    assert fv > 0
+    assert fv <= 1.5 * q4, (fv, q4)
+    # measured: fv / t3 = 0.40 (see module docstring); the 1/3 target is the xfail below
+    assert fv < t3, (fv, t3)
+
+
+@pytest.mark.xfail(strict=True, reason="measured FV roughness = 0.40 x T3 (0.0072 vs 0.0179) "
+                   "on this coarse mesh, not <= 1/3; reported, not weakened")
+def test_fv_roughness_third_of_t3(comparison):
+    r = comparison["by_method"]
+    assert r["fv"]["roughness"] <= r["fem-t3"]["roughness"] / 3
+
+
+def test_roughness_metric_ignores_unloaded_and_sees_noise():
+    pts = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float)
+    tri = np.array([[0, 1, 3], [0, 3, 2]])
+    smooth = {"b": {"pressure": np.zeros(4), "triangles": tri, "reference_points": pts}}
+    assert pressure_roughness(smooth, 1.0) == 0.0
+    noisy = {"b": {"pressure": np.array([1.0, -1.0, -1.0, 1.0]), "triangles": tri,
+                   "reference_points": pts}}
+    assert pressure_roughness(noisy, 1.0) > 1.0
+
+
+def test_contact_force_plateau_fv_vs_q4md(comparison):
+    r = comparison["by_method"]
+    fv, q4 = r["fv"]["plateau_force"], r["fem-q4md"]["plateau_force"]
+    assert fv > 0 and q4 > 0
+    assert abs(fv - q4) <= 0.10 * q4, (fv, q4)
+    for m in ("fv", "fem-t3", "fem-q4md"):  # contact starts at the kinematic impact time
+        assert abs(r[m]["contact_start"] - T_IMPACT) < 0.05 * T_IMPACT
+
+
+def test_momentum_and_penetration(comparison):
+    for m, row in comparison["by_method"].items():
+        assert row["momentum_drift"] < 1e-10, (m, row["momentum_drift"])
+        assert row["penetration"] <= 0.01 * row["h"], (m, row["penetration_per_h"])
+
+
+def test_energy_accounted(comparison):
+    res = comparison["results"]
+    h = res["fv"].history
+    e = h["kinetic_energy"] + h["strain_energy"]
+    assert np.all(np.diff(e) <= 1e-12 * e[0]), "FV total energy increased"
+    assert e[-1] > 0.9 * e[0]
+    for m in ("fem-t3", "fem-q4md"):
+        h = res[m].history
+        e = h["kinetic_energy"] + h["strain_energy"] + h["contact_energy"]
+        assert np.abs(e / e[0] - 1).max() < 0.03, (m, np.abs(e / e[0] - 1).max())
+
+
+# ------------------------------------------------------------------- the FE case driver
+
+def _fem_case(method, **changes):
+    case = coarse_bars(2e-6)
+    case["run"]["method"] = method
+    for body in case["body"]:
+        body["mesh"]["divisions"] = [10, 2]
+    for key, value in changes.items():
+        if key == "boundary":
+            case["body"][0]["boundary"] = value
+        elif key == "contact":
+            case["contact"] = value
+    return case
+
+
+@pytest.mark.parametrize("method", ["fem-t3", "fem-q4md"])
+def test_driver_runs_and_writes(method, tmp_path):
+    from impactfv.solver import run
+
+    rollers = [{"region": "ymin", "velocity": {"y": 0.0}},
+               {"region": "ymax", "velocity": {"y": 0.0}}]
+    case = load_case(_fem_case(method, boundary=rollers))
+    res = run(case, tmp_path, progress=False)
+    for key in ("time", "dt", "kinetic_energy", "strain_energy", "total_energy", "momentum_x",
+                "momentum_y", "contact_energy", "contact0_fx", "contact0_fy", "contact0_gap"):
+        assert key in res.history
+    s = res.summary
+    assert s["method"] == method and s["status"] == "completed" and s["nodes"] == 2 * 33
+    assert abs(s["end_time"] - 2e-6) < 1e-15
+    left = res.bodies["left"]
+    assert left["cells"].shape[1] == (3 if method == "fem-t3" else 4)
+    assert left["triangles"].shape[1] == 3 and len(left["pressure"]) == 33
+    # rollers: y velocity held at 0 on y = 0 and y = W
+    edge = np.isclose(left["reference_points"][:, 1], 0) | \
+        np.isclose(left["reference_points"][:, 1], W)
+    assert np.all(left["velocity"][edge, 1] == 0.0)
+    for name in ("history.csv", "summary.json", "fields.pvd"):
+        assert (tmp_path / name).is_file()
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"boundary": [{"region": "xmin", "traction": [1.0, 0.0]}]}, "traction"),
+    ({"contact": [{"bodies": ["left"], "wall": {"point": [0, 0], "normal": [-1, 0]}}]},
+     "wall"),
+    ({"contact": [{"bodies": ["left", "right"], "model": "stick"}]}, "frictionless"),
+])
+def test_driver_refuses_unsupported(changes, words):
+    from impactfv.errors import InputError
+    from impactfv.solver import run
+
+    with pytest.raises(InputError, match=words):
+        run(load_case(_fem_case("fem-t3", **changes)), progress=False)
+
+
+def test_q4md_refuses_file_mesh(tmp_path):
+    import meshio
+
+    from impactfv.errors import InputError
+    from impactfv.solver import run
+
+    pts = np.array([[0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0], [1e-3, 1e-3, 0]], float)
+    meshio.write(tmp_path / "sq.vtu", meshio.Mesh(pts, [("triangle", [[0, 1, 3], [0, 3, 2]])]))
+    case = {"run": {"end_time": 1e-7, "method": "fem-q4md"}, "material": [MAT],
+            "body": [{"name": "b", "material": "copper", "mesh": {"file": "sq.vtu"}}]}
+    with pytest.raises(InputError, match="rectangle-generated"):
+        run(load_case(case, base_dir=tmp_path), progress=False)
+    case["run"]["method"] = "fem-t3"
+    assert run(load_case(case, base_dir=tmp_path), progress=False).summary["steps"] > 0
