@@ -1,0 +1,59 @@
+"""Regression against stored values: kernel rewrites (ordering, threading, fusion) must not
+change results beyond round-off. Regenerate tests/data/regression.json only on purpose:
+    python tests/test_regression.py --store
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from impactfv import load_case, run
+from impactfv.validation.bars import two_bars
+from impactfv.validation.standing_wave import case_dict
+
+DATA = Path(__file__).parent / "data" / "regression.json"
+
+
+def cases():
+    wave = case_dict(12, order=2, limiter="barth_jespersen", end_fraction=0.05)
+    bars = two_bars(divisions=(30, 4), divisions_right=(24, 5), end_time=1.2e-5,
+                    model="slip", rollers=False, tangential=5.0)
+    return {"standing_wave": wave, "bars": bars}
+
+
+def fingerprint(result):
+    out = {}
+    for name, body in sorted(result.bodies.items()):
+        for key in ("points", "velocity", "pressure"):
+            values = np.asarray(body[key], float)
+            out[f"{name}.{key}.sum"] = float(values.sum())
+            out[f"{name}.{key}.norm"] = float(np.linalg.norm(values))
+            out[f"{name}.{key}.first"] = values.ravel()[:3].tolist()
+    for key in ("time", "total_energy", "momentum_x"):
+        out[f"history.{key}.last"] = float(result.history[key][-1])
+    out["steps"] = int(result.summary["steps"])
+    return out
+
+
+def compute():
+    return {name: fingerprint(run(load_case(case))) for name, case in cases().items()}
+
+
+def test_results_match_stored_values():
+    stored = json.loads(DATA.read_text())
+    now = compute()
+    for case, values in stored.items():
+        assert now[case]["steps"] == values["steps"], case
+        for key, ref in values.items():
+            got = np.asarray(now[case][key], float)
+            ref = np.asarray(ref, float)
+            scale = max(np.abs(ref).max(), 1e-30)
+            if key.endswith(".sum") and "velocity" in key or "momentum" in key:
+                scale = max(scale, 1e-6)  # sums that vanish by symmetry
+            assert np.allclose(got, ref, rtol=1e-9, atol=1e-9 * scale), (case, key, got, ref)
+
+
+if __name__ == "__main__" and "--store" in sys.argv:
+    DATA.write_text(json.dumps(compute(), indent=1) + "\n")
