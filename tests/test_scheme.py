@@ -78,3 +78,34 @@ def test_limiter_removes_the_overshoot_at_a_velocity_jump(block, limiter):
     limited, unlimited = peak(limiter), peak("none")
     assert limited < 1e-4 * 10.0
     assert limited < unlimited
+
+
+@pytest.mark.parametrize("blocks", [1, 3, 7])
+def test_parallel_edge_blocks_match_the_serial_loop(block, blocks):
+    """Edge loops run by node block in parallel: any partition gives the same rates (to
+    round-off) as one serial block, on a mesh whose node numbering was shuffled."""
+    from impactfv.mesh import rectangle
+    from impactfv.model import partition_edges
+
+    mesh = rectangle((0.0, 0.0), (0.01, 0.004), (30, 12), "crossed")
+    perm = np.random.default_rng(5).permutation(mesh.n_nodes)
+    inverse = np.argsort(perm)
+    case = load_case(block(divisions=(30, 12), velocity=["30*sin(400*x)", "20*cos(900*y)"]))
+    case.bodies[0].mesh.points = mesh.points[perm]
+    case.bodies[0].mesh.triangles = inverse[mesh.triangles]
+    case.bodies[0].mesh.regions = {k: inverse[v] for k, v in mesh.regions.items()}
+    results = []
+    for n_blocks in (1, blocks):
+        solver = FVSolver(case)
+        m = solver.model
+        edges, C, offsets = partition_edges(m.edges, m.C, m.n_nodes, n_blocks)
+        m.edges, m.C, m.edge_offsets = edges, C, offsets
+        m.C_len = np.linalg.norm(C, axis=1)
+        m.half = 0.5 * (m.X[edges[:, 1]] - m.X[edges[:, 0]])
+        solver.F[:] += 1e-3 * np.sin(np.arange(solver.F.size)).reshape(solver.F.shape)
+        solver.rates()
+        results.append((solver.force.copy(), solver.dF.copy()))
+        assert len(offsets) == n_blocks + 2
+    (f1, d1), (f2, d2) = results
+    assert np.allclose(f1, f2, rtol=0, atol=1e-9 * np.abs(f1).max())
+    assert np.allclose(d1, d2, rtol=0, atol=1e-12 * np.abs(d1).max())

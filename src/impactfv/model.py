@@ -52,6 +52,8 @@ class Model:
     fixed_mask: np.ndarray   # (n,2) bool: strongly prescribed nodal velocity components
     fixed_value: np.ndarray  # (n,2)
     v0: np.ndarray           # (n,2) initial velocity
+    edge_offsets: np.ndarray = None  # (nblocks+2,) edges grouped by node block, then cross
+    body_start: np.ndarray = None    # (nbodies+1,) first node of each body
     bodies: list[BodyLayout] = field(default_factory=list)
 
     @property
@@ -125,6 +127,7 @@ def build_model(case: Case) -> Model:
     X = np.concatenate(X)
     edges = np.concatenate(edges).astype(np.int64)
     C = np.concatenate(C)
+    edges, C, edge_offsets = partition_edges(edges, C, offset)
     fixed_mask = np.zeros((offset, 2), bool)
     fixed_value = np.zeros((offset, 2))
     for node, c, value in fixed_nodes:
@@ -145,4 +148,27 @@ def build_model(case: Case) -> Model:
         hb_C=np.concatenate(hb_C)[order], hb_edge=np.concatenate(hb_edge)[order],
         hb_bc=np.concatenate(hb_bc)[order].astype(np.int32),
         bc_fix=np.array(bc_fix, bool), bc_v=np.array(bc_v, float), bc_t=np.array(bc_t, float),
-        fixed_mask=fixed_mask, fixed_value=fixed_value, v0=v0, bodies=layouts)
+        fixed_mask=fixed_mask, fixed_value=fixed_value, v0=v0, edge_offsets=edge_offsets,
+        body_start=np.array([b.start for b in layouts] + [offset], np.int64), bodies=layouts)
+
+
+def partition_edges(edges, C, n_nodes, n_blocks=None):
+    """Group the edges by contiguous node blocks so that edge loops run in parallel.
+
+    Nodes are split into ``n_blocks`` ranges with about equal numbers of edges (default: the
+    numba thread count). Edges with both ends in block k come first, block by block, then the
+    few edges joining two blocks; within a group the (a, b) order is kept for locality.
+    Returns the reordered edges and area vectors and the group offsets (n_blocks + 2).
+    """
+    if n_blocks is None:
+        import numba
+        n_blocks = max(1, numba.get_num_threads())
+    counts = np.bincount(edges[:, 0], minlength=n_nodes)
+    cumulative = np.cumsum(counts)
+    bounds = np.searchsorted(cumulative, np.arange(1, n_blocks) * len(edges) / n_blocks)
+    block_a = np.searchsorted(bounds, edges[:, 0], side="right")
+    block_b = np.searchsorted(bounds, edges[:, 1], side="right")
+    group = np.where(block_a == block_b, block_a, n_blocks)
+    order = np.argsort(group, kind="stable")
+    offsets = np.concatenate([[0], np.cumsum(np.bincount(group, minlength=n_blocks + 1))])
+    return edges[order], C[order], offsets.astype(np.int64)

@@ -79,13 +79,13 @@ class FVSolver:
         if self.contact is not None:
             self.contact.stage(self.x, self.v, self.F, self.dt, stage)
         if self.order == 2:
-            K.velocity_gradient(self.v, m.edges, m.C, m.hb_node, m.hb_other, m.hb_C, m.omega,
-                                self.grad)
+            K.velocity_gradient(self.v, m.edges, m.C, m.edge_offsets, m.hb_node, m.hb_other,
+                                m.hb_C, m.omega, self.grad, self.vmin, self.vmax)
             if self.limiter != K.LIMITER_NONE:
-                K.limit_gradient(self.v, m.edges, m.half, m.node_length, self.limiter,
+                K.limit_gradient(self.v, m.edges, m.half, m.edge_offsets, self.limiter,
                                  self.vmin, self.vmax, self.phi, self.grad)
         K.assemble_rates(self.v, self.F, self.P, self.grad, m.node_mat, m.mat, m.edges, m.C,
-                         m.C_len, m.half, m.hb_node, m.hb_other, m.hb_C, m.hb_bc, m.bc_fix,
+                         m.C_len, m.half, m.edge_offsets, m.hb_node, m.hb_other, m.hb_C, m.hb_bc, m.bc_fix,
                          m.bc_v, m.bc_t, self.order == 2, self.upwind_geometric,
                          self.hb_in_contact, self.force, self.dF)
         if self.contact is not None:
@@ -111,8 +111,7 @@ class FVSolver:
 
     def energies(self) -> np.ndarray:
         m = self.model
-        K.monitors(self.v, self.F, m.node_mat, m.mat, m.omega, m.body_of_node, len(m.bodies),
-                   self.monitor_buf)
+        K.monitors(self.v, self.F, m.node_mat, m.mat, m.omega, m.body_start, self.monitor_buf)
         return self.monitor_buf.sum(axis=0)
 
     def check_state(self, step: int, t: float):

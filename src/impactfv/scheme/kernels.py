@@ -53,17 +53,47 @@ def compute_stress(F, node_mat, mat, P):
 
 
 @njit(cache=True)
-def velocity_gradient(v, edges, C, hb_node, hb_other, hb_C, omega, grad):
-    """Green-Gauss nodal gradient grad[a, i, J] = d v_i / d X_J (exact for linear fields)."""
-    grad[:] = 0.0
-    for e in range(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
+def _gradient_edge(e, v, edges, C, grad, vmin, vmax):
+    a = edges[e, 0]
+    b = edges[e, 1]
+    for i in range(2):
+        u = 0.5 * (v[a, i] + v[b, i])
+        for J in range(2):
+            grad[a, i, J] += u * C[e, J]
+            grad[b, i, J] -= u * C[e, J]
+        # neighbour range for the limiter, in the same sweep
+        if v[b, i] < vmin[a, i]:
+            vmin[a, i] = v[b, i]
+        if v[b, i] > vmax[a, i]:
+            vmax[a, i] = v[b, i]
+        if v[a, i] < vmin[b, i]:
+            vmin[b, i] = v[a, i]
+        if v[a, i] > vmax[b, i]:
+            vmax[b, i] = v[a, i]
+
+
+@njit(cache=True, parallel=True)
+def velocity_gradient(v, edges, C, edge_offsets, hb_node, hb_other, hb_C, omega, grad, vmin,
+                      vmax):
+    """Green-Gauss nodal gradient grad[a, i, J] = d v_i / d X_J (exact for linear fields), and
+    the range [vmin, vmax] of each component over the node and its neighbours.
+
+    Edges come grouped by node block (edge_offsets): the blocks run in parallel without
+    races, the edges joining two blocks afterwards.
+    """
+    n = v.shape[0]
+    for a in prange(n):
         for i in range(2):
-            u = 0.5 * (v[a, i] + v[b, i])
+            vmin[a, i] = v[a, i]
+            vmax[a, i] = v[a, i]
             for J in range(2):
-                grad[a, i, J] += u * C[e, J]
-                grad[b, i, J] -= u * C[e, J]
+                grad[a, i, J] = 0.0
+    nb = edge_offsets.shape[0] - 2
+    for k in prange(nb):
+        for e in range(edge_offsets[k], edge_offsets[k + 1]):
+            _gradient_edge(e, v, edges, C, grad, vmin, vmax)
+    for e in range(edge_offsets[nb], edge_offsets[nb + 1]):
+        _gradient_edge(e, v, edges, C, grad, vmin, vmax)
     for h in range(hb_node.shape[0]):
         a = hb_node[h]
         o = hb_other[h]
@@ -71,7 +101,7 @@ def velocity_gradient(v, edges, C, hb_node, hb_other, hb_C, omega, grad):
             u = (5.0 * v[a, i] + v[o, i]) / 6.0
             for J in range(2):
                 grad[a, i, J] += u * hb_C[h, J]
-    for a in range(v.shape[0]):
+    for a in prange(n):
         inv = 1.0 / omega[a]
         for i in range(2):
             for J in range(2):
@@ -86,114 +116,127 @@ def _venkatakrishnan(dmax, d, eps2):
 
 
 @njit(cache=True)
-def limit_gradient(v, edges, half, node_length, kind, vmin, vmax, phi, grad):
-    """Scale each component's gradient so the midpoint values stay within the neighbours' range.
+def _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad):
+    for side in range(2):
+        a = edges[e, side]
+        sgn = 1.0 if side == 0 else -1.0
+        for i in range(2):
+            d = sgn * (grad[a, i, 0] * half[e, 0] + grad[a, i, 1] * half[e, 1])
+            # a change below 1e-10 of the local range needs no limiting; without this
+            # tolerance a round-off sized d at an extremum would switch phi from 1 to 0
+            if abs(d) <= 1e-10 * (vmax[a, i] - vmin[a, i]):
+                continue
+            dmax = vmax[a, i] - v[a, i] if d > 0.0 else vmin[a, i] - v[a, i]
+            if kind == LIMITER_BARTH_JESPERSEN:
+                f = min(1.0, dmax / d)
+            else:
+                rng = vmax[a, i] - vmin[a, i]
+                f = _venkatakrishnan(dmax, d, 0.027 * rng * rng)
+            if f < phi[a, i]:
+                phi[a, i] = f
 
-    Barth-Jespersen (kind 1) or Venkatakrishnan (kind 2, eps^2 = (0.3 h)^3 |range|^2/h^2 scaled).
+
+@njit(cache=True, parallel=True)
+def limit_gradient(v, edges, half, edge_offsets, kind, vmin, vmax, phi, grad):
+    """Scale each component's gradient so the midpoint values stay within the neighbours' range
+    [vmin, vmax] (from velocity_gradient): Barth-Jespersen (kind 1) or Venkatakrishnan
+    (kind 2, with eps^2 = 0.027 (vmax - vmin)^2, i.e. K = 0.3 relative to the local range).
     """
     n = v.shape[0]
-    for a in range(n):
-        for i in range(2):
-            vmin[a, i] = v[a, i]
-            vmax[a, i] = v[a, i]
-            phi[a, i] = 1.0
-    for e in range(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        for i in range(2):
-            if v[b, i] < vmin[a, i]:
-                vmin[a, i] = v[b, i]
-            if v[b, i] > vmax[a, i]:
-                vmax[a, i] = v[b, i]
-            if v[a, i] < vmin[b, i]:
-                vmin[b, i] = v[a, i]
-            if v[a, i] > vmax[b, i]:
-                vmax[b, i] = v[a, i]
-    for e in range(edges.shape[0]):
-        for side in range(2):
-            a = edges[e, side]
-            sgn = 1.0 if side == 0 else -1.0
-            for i in range(2):
-                d = sgn * (grad[a, i, 0] * half[e, 0] + grad[a, i, 1] * half[e, 1])
-                if d == 0.0:
-                    continue
-                dmax = vmax[a, i] - v[a, i] if d > 0.0 else vmin[a, i] - v[a, i]
-                if kind == LIMITER_BARTH_JESPERSEN:
-                    f = min(1.0, dmax / d)
-                else:
-                    rng = vmax[a, i] - vmin[a, i]
-                    eps2 = 0.027 * rng * rng
-                    f = _venkatakrishnan(dmax, d, eps2)
-                if f < phi[a, i]:
-                    phi[a, i] = f
-    for a in range(n):
+    for a in prange(n):
+        phi[a, 0] = 1.0
+        phi[a, 1] = 1.0
+    nb = edge_offsets.shape[0] - 2
+    for k in prange(nb):
+        for e in range(edge_offsets[k], edge_offsets[k + 1]):
+            _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad)
+    for e in range(edge_offsets[nb], edge_offsets[nb + 1]):
+        _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad)
+    for a in prange(n):
         for i in range(2):
             grad[a, i, 0] *= phi[a, i]
             grad[a, i, 1] *= phi[a, i]
 
 
 @njit(cache=True)
-def assemble_rates(v, F, P, grad, node_mat, mat, edges, C, C_len, half, hb_node, hb_other,
-                   hb_C, hb_bc, bc_fix, bc_v, bc_t, use_reconstruction, upwind_geometric, hb_in_contact,
-                   force, dF):
+def _flux_edge(e, v, F, P, grad, node_mat, mat, edges, C, C_len, half, use_reconstruction,
+               upwind_geometric, force, dF):
+    """Upwind traction and central (or upwind) geometric flux of interior edge e."""
+    a = edges[e, 0]
+    b = edges[e, 1]
+    k = node_mat[a]
+    rho = mat[k, RHO]
+    zp = rho * mat[k, CP]
+    zs = rho * mat[k, CS]
+    c1 = C[e, 0]
+    c2 = C[e, 1]
+    ln = C_len[e]
+    N1 = c1 / ln
+    N2 = c2 / ln
+    n1, n2 = spatial_normal(0.5 * (F[a, 0] + F[b, 0]), 0.5 * (F[a, 1] + F[b, 1]),
+                            0.5 * (F[a, 2] + F[b, 2]), 0.5 * (F[a, 3] + F[b, 3]), N1, N2)
+    va1 = v[a, 0]
+    va2 = v[a, 1]
+    vb1 = v[b, 0]
+    vb2 = v[b, 1]
+    if use_reconstruction:
+        h1 = half[e, 0]
+        h2 = half[e, 1]
+        va1 += grad[a, 0, 0] * h1 + grad[a, 0, 1] * h2
+        va2 += grad[a, 1, 0] * h1 + grad[a, 1, 1] * h2
+        vb1 -= grad[b, 0, 0] * h1 + grad[b, 0, 1] * h2
+        vb2 -= grad[b, 1, 0] * h1 + grad[b, 1, 1] * h2
+    tbar1 = 0.5 * ((P[a, 0] + P[b, 0]) * N1 + (P[a, 1] + P[b, 1]) * N2)
+    tbar2 = 0.5 * ((P[a, 2] + P[b, 2]) * N1 + (P[a, 3] + P[b, 3]) * N2)
+    t1, t2 = interior_traction(tbar1, tbar2, vb1 - va1, vb2 - va2, zp, zs, n1, n2)
+    f1 = t1 * ln
+    f2 = t2 * ln
+    force[a, 0] += f1
+    force[a, 1] += f2
+    force[b, 0] -= f1
+    force[b, 1] -= f2
+    # central geometric flux keeps F the gradient of x (compatibility)
+    u1 = 0.5 * (v[a, 0] + v[b, 0])
+    u2 = 0.5 * (v[a, 1] + v[b, 1])
+    if upwind_geometric:
+        # v = avg(v) + Z^-1 [[t]] / 2 with nodal (unreconstructed) tractions
+        dt1 = (P[b, 0] - P[a, 0]) * N1 + (P[b, 1] - P[a, 1]) * N2
+        dt2 = (P[b, 2] - P[a, 2]) * N1 + (P[b, 3] - P[a, 3]) * N2
+        w1, w2 = impedance_times(1.0 / zp, 1.0 / zs, n1, n2, dt1, dt2)
+        u1 = 0.5 * (va1 + vb1) + 0.5 * w1
+        u2 = 0.5 * (va2 + vb2) + 0.5 * w2
+    dF[a, 0] += u1 * c1
+    dF[a, 1] += u1 * c2
+    dF[a, 2] += u2 * c1
+    dF[a, 3] += u2 * c2
+    dF[b, 0] -= u1 * c1
+    dF[b, 1] -= u1 * c2
+    dF[b, 2] -= u2 * c1
+    dF[b, 3] -= u2 * c2
+
+
+@njit(cache=True, parallel=True)
+def assemble_rates(v, F, P, grad, node_mat, mat, edges, C, C_len, half, edge_offsets, hb_node,
+                   hb_other, hb_C, hb_bc, bc_fix, bc_v, bc_t, use_reconstruction,
+                   upwind_geometric, hb_in_contact, force, dF):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt.
 
     Half-edges on a contact surface whose node is in contact are left to the contact module.
+    Interior edges run by node block in parallel (see velocity_gradient).
     """
-    force[:] = 0.0
-    dF[:] = 0.0
-    for e in range(edges.shape[0]):
-        a = edges[e, 0]
-        b = edges[e, 1]
-        k = node_mat[a]
-        rho = mat[k, RHO]
-        zp = rho * mat[k, CP]
-        zs = rho * mat[k, CS]
-        c1 = C[e, 0]
-        c2 = C[e, 1]
-        ln = C_len[e]
-        N1 = c1 / ln
-        N2 = c2 / ln
-        n1, n2 = spatial_normal(0.5 * (F[a, 0] + F[b, 0]), 0.5 * (F[a, 1] + F[b, 1]),
-                                0.5 * (F[a, 2] + F[b, 2]), 0.5 * (F[a, 3] + F[b, 3]), N1, N2)
-        va1 = v[a, 0]
-        va2 = v[a, 1]
-        vb1 = v[b, 0]
-        vb2 = v[b, 1]
-        if use_reconstruction:
-            h1 = half[e, 0]
-            h2 = half[e, 1]
-            va1 += grad[a, 0, 0] * h1 + grad[a, 0, 1] * h2
-            va2 += grad[a, 1, 0] * h1 + grad[a, 1, 1] * h2
-            vb1 -= grad[b, 0, 0] * h1 + grad[b, 0, 1] * h2
-            vb2 -= grad[b, 1, 0] * h1 + grad[b, 1, 1] * h2
-        tbar1 = 0.5 * ((P[a, 0] + P[b, 0]) * N1 + (P[a, 1] + P[b, 1]) * N2)
-        tbar2 = 0.5 * ((P[a, 2] + P[b, 2]) * N1 + (P[a, 3] + P[b, 3]) * N2)
-        t1, t2 = interior_traction(tbar1, tbar2, vb1 - va1, vb2 - va2, zp, zs, n1, n2)
-        f1 = t1 * ln
-        f2 = t2 * ln
-        force[a, 0] += f1
-        force[a, 1] += f2
-        force[b, 0] -= f1
-        force[b, 1] -= f2
-        # central geometric flux keeps F the gradient of x (compatibility)
-        u1 = 0.5 * (v[a, 0] + v[b, 0])
-        u2 = 0.5 * (v[a, 1] + v[b, 1])
-        if upwind_geometric:
-            # v = avg(v) + Z^-1 [[t]] / 2 with nodal (unreconstructed) tractions
-            dt1 = (P[b, 0] - P[a, 0]) * N1 + (P[b, 1] - P[a, 1]) * N2
-            dt2 = (P[b, 2] - P[a, 2]) * N1 + (P[b, 3] - P[a, 3]) * N2
-            w1, w2 = impedance_times(1.0 / zp, 1.0 / zs, n1, n2, dt1, dt2)
-            u1 = 0.5 * (va1 + vb1) + 0.5 * w1
-            u2 = 0.5 * (va2 + vb2) + 0.5 * w2
-        dF[a, 0] += u1 * c1
-        dF[a, 1] += u1 * c2
-        dF[a, 2] += u2 * c1
-        dF[a, 3] += u2 * c2
-        dF[b, 0] -= u1 * c1
-        dF[b, 1] -= u1 * c2
-        dF[b, 2] -= u2 * c1
-        dF[b, 3] -= u2 * c2
+    for a in prange(force.shape[0]):
+        force[a, 0] = 0.0
+        force[a, 1] = 0.0
+        for j in range(4):
+            dF[a, j] = 0.0
+    nb = edge_offsets.shape[0] - 2
+    for k in prange(nb):
+        for e in range(edge_offsets[k], edge_offsets[k + 1]):
+            _flux_edge(e, v, F, P, grad, node_mat, mat, edges, C, C_len, half,
+                       use_reconstruction, upwind_geometric, force, dF)
+    for e in range(edge_offsets[nb], edge_offsets[nb + 1]):
+        _flux_edge(e, v, F, P, grad, node_mat, mat, edges, C, C_len, half, use_reconstruction,
+                   upwind_geometric, force, dF)
     for h in range(hb_node.shape[0]):
         bc = hb_bc[h]
         a = hb_node[h]
@@ -263,20 +306,28 @@ def stable_time_step(F, node_mat, mat, node_length):
     return local.min()
 
 
-@njit(cache=True)
-def monitors(v, F, node_mat, mat, omega, body_of_node, n_bodies, out):
-    """Per body: kinetic energy, strain energy, momentum x, momentum y (rows of ``out``)."""
-    out[:] = 0.0
-    for a in range(v.shape[0]):
-        k = node_mat[a]
-        m = mat[k, RHO] * omega[a]
-        w = strain_energy_density(F[a, 0], F[a, 1], F[a, 2], F[a, 3], mat[k, MU],
-                                  mat[k, LAMBDA], mat[k, KAPPA], int(mat[k, MODEL]))
-        body = body_of_node[a]
-        out[body, 0] += 0.5 * m * (v[a, 0] * v[a, 0] + v[a, 1] * v[a, 1])
-        out[body, 1] += omega[a] * w
-        out[body, 2] += m * v[a, 0]
-        out[body, 3] += m * v[a, 1]
+@njit(cache=True, parallel=True)
+def monitors(v, F, node_mat, mat, omega, body_start, out):
+    """Per body (nodes body_start[k]:body_start[k+1]): kinetic energy, strain energy,
+    momentum x, momentum y (rows of ``out``)."""
+    for k in range(body_start.shape[0] - 1):
+        ke = 0.0
+        se = 0.0
+        px = 0.0
+        py = 0.0
+        for a in prange(body_start[k], body_start[k + 1]):
+            j = node_mat[a]
+            m = mat[j, RHO] * omega[a]
+            w = strain_energy_density(F[a, 0], F[a, 1], F[a, 2], F[a, 3], mat[j, MU],
+                                      mat[j, LAMBDA], mat[j, KAPPA], int(mat[j, MODEL]))
+            ke += 0.5 * m * (v[a, 0] * v[a, 0] + v[a, 1] * v[a, 1])
+            se += omega[a] * w
+            px += m * v[a, 0]
+            py += m * v[a, 1]
+        out[k, 0] = ke
+        out[k, 1] = se
+        out[k, 2] = px
+        out[k, 3] = py
 
 
 @njit(cache=True, parallel=True)
