@@ -10,6 +10,7 @@ import pytest
 from impactfv import InputError, load_case, run
 from impactfv.contact.riemann import contact_state, wall_state
 from impactfv.materials import Material
+from impactfv.mesh.dual import median_dual
 from impactfv.validation.bars import SEED_MATERIAL, bar_on_wall, pulse, two_bars
 
 SEED = Material(**SEED_MATERIAL)
@@ -19,12 +20,7 @@ DURATION = 2 * L / SEED.p_wave_speed
 
 
 def body_momentum(body, density):
-    pts, tri = body["reference_points"], body["triangles"]
-    p = pts[tri]
-    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-    omega = np.zeros(len(pts))
-    np.add.at(omega, tri.ravel(), np.repeat(area / 3, 3))
+    omega = median_dual(body["reference_points"], body["triangles"]).dual_areas
     return density * (omega[:, None] * body["velocity"]).sum(axis=0)
 
 

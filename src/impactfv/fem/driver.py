@@ -29,7 +29,6 @@ snapshots at the output interval (nodal fields on the triangles above).
 
 from __future__ import annotations
 
-import sys
 import time as _time
 from pathlib import Path
 
@@ -158,6 +157,7 @@ def run_fem_case(case, output_dir=None, progress=None):
         snap_times = [0.0] + [min(i * interval, end) for i in range(1, n_out + 1)]
         if snap_times[-1] < end * (1 - 1e-12):
             snap_times.append(end)
+    from ..solver import _progress_bar  # one progress bar for every method
     bar = _progress_bar(progress, end)
     callback = None
     if bar is not None:
@@ -218,12 +218,3 @@ def run_fem_case(case, output_dir=None, progress=None):
         write_summary(out / "summary.json", summary)
     return RunResult(history, fields, summary, out, snapshots)
 
-
-def _progress_bar(progress, end):
-    if progress is None:
-        progress = sys.stderr.isatty()
-    if not progress:
-        return None
-    from tqdm import tqdm
-    return tqdm(total=end, unit="s", unit_scale=True, desc="simulated time",
-                bar_format="{l_bar}{bar}| {n:.3e}/{total:.3e} s [{elapsed}<{remaining}]")

@@ -52,7 +52,7 @@ def compute_stress(F, node_mat, mat, P):
         P[a, 3] = p22
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _gradient_edge(e, v, edges, C, grad, vmin, vmax):
     a = edges[e, 0]
     b = edges[e, 1]
@@ -115,7 +115,7 @@ def _venkatakrishnan(dmax, d, eps2):
     return num / (den * d)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad):
     for side in range(2):
         a = edges[e, side]
@@ -158,7 +158,7 @@ def limit_gradient(v, edges, half, edge_offsets, kind, vmin, vmax, phi, grad):
             grad[a, i, 1] *= phi[a, i]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _flux_edge(e, v, F, P, grad, node_mat, mat, edges, C, C_len, half, use_reconstruction,
                upwind_geometric, force, dF):
     """Upwind traction and central (or upwind) geometric flux of interior edge e."""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..materials import Material
+from ..mesh.dual import median_dual
 
 RUBBER = dict(name="rubber", model="linear_elastic", density=1100.0, youngs_modulus=17.0e6,
               poisson_ratio=0.45)
@@ -76,19 +77,10 @@ def errors(result, case_data, amplitude=1e-4):
     e12 = 0.5 * (F[:, 0, 1] + F[:, 1, 0])
     lam, mu = mat.lam, mat.mu
     s_num = (lam * (e11 + e22) + 2 * mu * e11, 2 * mu * e12, lam * (e11 + e22) + 2 * mu * e22)
-    w = _dual_weights(body)
+    w = median_dual(body["reference_points"], body["triangles"]).dual_areas
     v_scale = amplitude * frequency(mat)
     s_scale = amplitude * (lam + 2 * mu) * np.pi / 2
     ev = np.sqrt(np.sum(w * np.sum((body["velocity"] - v_ex) ** 2, axis=1))) / v_scale
     es = np.sqrt(np.sum(w * sum((a - b) ** 2 for a, b in zip(s_num, s_ex)))) / s_scale
     return ev, es
 
-
-def _dual_weights(body):
-    pts, tri = body["reference_points"], body["triangles"]
-    p = pts[tri]
-    area = 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
-                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-    w = np.zeros(len(pts))
-    np.add.at(w, tri.ravel(), np.repeat(area / 3, 3))
-    return w
