@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .trimesh import boundary_edges_of
+from .trimesh import boundary_edges_of, directed_edges, edge_keys, keys_to_edges
 
 
 @dataclass
@@ -34,24 +34,22 @@ class MedianDual:
 def median_dual(points: np.ndarray, triangles: np.ndarray) -> MedianDual:
     n = len(points)
     centroid = points[triangles].mean(axis=1)
-    local = ((0, 1), (1, 2), (2, 0))
-    directed = np.concatenate([triangles[:, list(p)] for p in local])
+    directed = directed_edges(triangles)
     mid = 0.5 * (points[directed[:, 0]] + points[directed[:, 1]])
     d = np.tile(centroid, (3, 1)) - mid
     # triangles are counter-clockwise, so the centroid is left of a->b and (dy, -dx) points a->b
     c_directed = np.column_stack([d[:, 1], -d[:, 0]])
     sign = np.where(directed[:, 0] < directed[:, 1], 1.0, -1.0)
-    key = np.sort(directed, axis=1)
-    edges, inverse = np.unique(key, axis=0, return_inverse=True)
-    inverse = inverse.ravel()
-    area_vectors = np.zeros((len(edges), 2))
-    np.add.at(area_vectors, inverse, sign[:, None] * c_directed)
+    keys, inverse = np.unique(edge_keys(directed), return_inverse=True)
+    edges = keys_to_edges(keys)
+    m = len(edges)
+    area_vectors = np.column_stack([np.bincount(inverse, sign * c_directed[:, j], minlength=m)
+                                    for j in range(2)])
 
     p = points[triangles]
     tri_area = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                       - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-    dual_areas = np.zeros(n)
-    np.add.at(dual_areas, triangles.ravel(), np.repeat(tri_area / 3.0, 3))
+    dual_areas = np.bincount(triangles.ravel(), np.repeat(tri_area / 3.0, 3), minlength=n)
 
     bnd = boundary_edges_of(triangles)
     t = points[bnd[:, 1]] - points[bnd[:, 0]]
