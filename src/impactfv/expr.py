@@ -32,14 +32,17 @@ def compile_expression(text: str, key: str):
     """Check ``text`` and return a function f(x, y) -> array. Raises InputError naming ``key``."""
     try:
         tree = ast.parse(text.strip(), mode="eval")
-    except SyntaxError:
+    except (SyntaxError, ValueError, RecursionError, MemoryError):
         raise InputError(f"{key}: cannot parse expression {text!r}") from None
     _check(tree.body, key, text)
 
     def evaluate(x, y):
-        with np.errstate(all="ignore"):
-            value = _eval(tree.body, {"x": x, "y": y})
-        return np.broadcast_to(np.asarray(value, dtype=float), np.shape(x)).copy()
+        try:
+            with np.errstate(all="ignore"):
+                value = _eval(tree.body, {"x": x, "y": y})
+            return np.broadcast_to(np.asarray(value, dtype=float), np.shape(x)).copy()
+        except (TypeError, ValueError, ArithmeticError) as exc:
+            raise InputError(f"{key}: cannot evaluate {text!r} ({exc})") from None
 
     return evaluate
 
