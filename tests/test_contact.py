@@ -181,3 +181,10 @@ def test_contact_outputs_in_history_and_fields(tmp_path):
     data = meshio.read(last).point_data
     assert "contact_status" in data and "contact_pressure" in data
     assert result.history["contact0_gap"][0] == pytest.approx(4e-4, rel=1e-9)
+
+
+def test_unknown_contact_region_is_an_input_error():
+    case = two_bars(divisions=(10, 2))
+    case["contact"][0]["regions"] = ["xmax", "xmin", "typo"]
+    with pytest.raises(InputError, match=r"contact\[0\]\.regions: unknown region 'typo'"):
+        load_case(case)

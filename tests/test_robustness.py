@@ -285,3 +285,12 @@ def test_fuzzed_mesh_files_give_a_run_or_an_input_error(tmp_path_factory, points
     except (InputError, SimulationError):
         return
     assert result.summary["status"] == "completed"
+
+
+def test_checkpoint_and_output_intervals_too_small_are_refused(tmp_path):
+    case = _toml_dict(BARS.replace("DIV", "8, 2"))
+    with pytest.raises(InputError, match="checkpoint-every"):
+        run(load_case(case), tmp_path, checkpoint_every=1e-300)
+    case["run"]["output_interval"] = 1e-300
+    with pytest.raises(InputError, match="output_interval"):
+        load_case(case)

@@ -47,6 +47,13 @@ class RunSettings(_Strict):
             raise ValueError("must be a finite number")
         return value
 
+    @model_validator(mode="after")
+    def _sensible_interval(self):
+        if self.output_interval is not None and self.output_interval < 1e-9 * self.end_time:
+            raise ValueError(f"output_interval must be at least 1e-9 x end_time "
+                             f"({1e-9 * self.end_time:.3g} s)")
+        return self
+
 
 class MaterialSpec(_Strict):
     name: str = Field(min_length=1)
@@ -228,6 +235,13 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
                                  f"{', '.join(sorted(mesh.regions)) or 'none'})")
         velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity")
         case.bodies.append(Body(b, case.materials[b.material], mesh, velocity))
+    meshes = {b.name: b.mesh for b in case.bodies}
+    for k, c in enumerate(spec.contact):
+        known = set().union(*(meshes[n].regions for n in c.bodies))
+        for region in c.regions or ():
+            if region not in known:
+                raise InputError(f"{name}: contact[{k}].regions: unknown region {region!r} "
+                                 f"(the bodies have: {', '.join(sorted(known)) or 'none'})")
     return case
 
 

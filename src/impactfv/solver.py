@@ -204,10 +204,10 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
         return run_fem_case(case, output_dir, progress)
     if (restart or checkpoint_every or handle_signals) and output_dir is None:
         raise InputError("restart and checkpoints need an output folder")
-    if checkpoint_every is not None and not (checkpoint_every > 0 and
+    if checkpoint_every is not None and not (checkpoint_every >= 1e-9 * case.run.end_time and
                                              math.isfinite(checkpoint_every)):
-        raise InputError(f"--checkpoint-every: expected a positive time in seconds, got "
-                         f"{checkpoint_every}")
+        raise InputError(f"--checkpoint-every: expected a positive time of at least 1e-9 x "
+                         f"end_time ({1e-9 * case.run.end_time:.3g} s), got {checkpoint_every}")
     wall_start = _time.perf_counter()
     solver = FVSolver(case)
     m = solver.model
@@ -245,8 +245,7 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
         record(0.0, 0.0)
         snapshot(0.0)
         next_output = interval
-    next_checkpoint = (math.floor(t / checkpoint_every + 1e-9) + 1) * checkpoint_every \
-        if checkpoint_every else math.inf
+    next_checkpoint = _next_multiple(t, checkpoint_every) if checkpoint_every else math.inf
     bar = _progress_bar(progress, end)
     if bar is not None and t > 0:
         bar.update(t)
@@ -272,15 +271,12 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
                 snapshot(t)
                 if out is not None:
                     write_history_csv(out / "history.csv", history.data, history.n)
-                next_output = min(next_output + interval, end) if t < end * (1 - 1e-12) \
-                    else math.inf
-                while next_output <= t * (1 + 1e-12):
-                    next_output += interval
+                next_output = min(_next_multiple(t, interval), end) \
+                    if t < end * (1 - 1e-12) else math.inf
             if t >= next_checkpoint * (1 - 1e-12):
                 save_checkpoint(out, fingerprint, solver, history, writer, t, steps,
                                 next_output)
-                while next_checkpoint <= t * (1 + 1e-12):
-                    next_checkpoint += checkpoint_every
+                next_checkpoint = _next_multiple(t, checkpoint_every)
             if bar is not None:
                 bar.update(t - bar.n)
             if stop.signum is not None:
@@ -303,6 +299,11 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     summary = _finish(out, history, solver, case, steps, t, wall_start, loop_start, status)
     return RunResult(history.arrays(), solver.body_fields(), summary, out,
                      writer.entries if writer else [])
+
+
+def _next_multiple(t, interval):
+    """The first multiple of ``interval`` after ``t`` (computed, never stepped to)."""
+    return (math.floor(t / interval * (1 + 1e-12)) + 1) * interval
 
 
 class _SignalFlag:
