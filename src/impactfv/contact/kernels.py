@@ -174,6 +174,13 @@ def _facing_length(a, n1, n2, F, hb_start, hb_list, hb_C, vhb, cover, w1, w2):
     return total
 
 
+@njit(cache=True, inline="always")
+def _candidate(g, gdot, dt, was_active, h):
+    """Contact candidate: the gap g would close within dt at the rate gdot, or the node was in
+    contact at the previous step (or stage) and its gap is below 5% of its edge length h."""
+    return g + dt * min(gdot, 0.0) <= 0.0 or (was_active > 0 and g <= 0.05 * h)
+
+
 @njit(cache=True)
 def _contact_motion(a, v, vstar, n1, n2, closing, xdot):
     """Velocity moving a contact node: the contact normal velocity plus the gap-closing rate
@@ -226,9 +233,7 @@ def contact_pass(x, v, F, sig, node_mat, mat, slave, nrm, hb_start, hb_list, hb_
         vB1 = (1.0 - xi) * v[p, 0] + xi * v[q, 0]
         vB2 = (1.0 - xi) * v[p, 1] + xi * v[q, 1]
         gdot = (vB1 - v[a, 0]) * n1 + (vB2 - v[a, 1]) * n2
-        closing = g + dt * min(gdot, 0.0) <= 0.0
-        staying = was_active[a] > 0 and g <= 0.05 * node_length[a]
-        if not (closing or staying):
+        if not _candidate(g, gdot, dt, was_active[a], node_length[a]):
             continue
         kA = node_mat[a]
         zpA = mat[kA, RHO] * mat[kA, CP]
@@ -321,9 +326,7 @@ def wall_pass(x, v, F, sig, node_mat, mat, slave, hb_start, hb_list, hb_C, vhb, 
         if not apply:
             continue
         gdot = (v[a, 0] - wall_v[0]) * nw[0] + (v[a, 1] - wall_v[1]) * nw[1]
-        closing = g + dt * min(gdot, 0.0) <= 0.0
-        staying = was_active[a] > 0 and g <= 0.05 * node_length[a]
-        if not (closing or staying):
+        if not _candidate(g, gdot, dt, was_active[a], node_length[a]):
             continue
         k = node_mat[a]
         zpA = mat[k, RHO] * mat[k, CP]
