@@ -1,4 +1,6 @@
 import copy
+import subprocess
+import sys
 
 import pytest
 
@@ -23,3 +25,9 @@ def block_case(divisions=(20, 8), size=(0.01, 0.004), velocity=(0.0, 0.0), end_t
 @pytest.fixture
 def block():
     return lambda **kw: copy.deepcopy(block_case(**kw))
+
+
+def run_cli(*args, **kwargs):
+    """Run ``python -m impactfv.cli ARGS`` and capture its output."""
+    return subprocess.run([sys.executable, "-m", "impactfv.cli", *map(str, args)],
+                          capture_output=True, text=True, **kwargs)

@@ -2,15 +2,13 @@
 
 import csv
 import json
-import os
-import subprocess
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import meshio
 import numpy as np
 import pytest
+from conftest import run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -40,8 +38,7 @@ velocity = { x = 0.0 }
 
 
 def impactfv(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "impactfv.cli", *map(str, args)],
-                          capture_output=True, text=True, cwd=cwd)
+    return run_cli(*args, cwd=cwd)
 
 
 def test_run_writes_history_summary_and_paraview_files(tmp_path):

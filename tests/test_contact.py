@@ -1,11 +1,9 @@
 """Rankine-Hugoniot contact: bars in uniaxial strain (numerics.md H.2, H.3), materials of
 different impedance (seed eq. 5), stick against slip, symmetry and start-up checks."""
 
-import subprocess
-import sys
-
 import numpy as np
 import pytest
+from conftest import run_cli
 
 from impactfv import InputError, load_case, run
 from impactfv.contact.riemann import contact_state, wall_state
@@ -162,11 +160,9 @@ model = "stick"
 """
     path = tmp_path / "overlap.toml"
     path.write_text(text)
-    check = subprocess.run([sys.executable, "-m", "impactfv.cli", "check", str(path)],
-                           capture_output=True, text=True)
+    check = run_cli("check", path)
     assert check.returncode == 0 and "PROBLEM" in check.stdout and "overlap" in check.stdout
-    proc = subprocess.run([sys.executable, "-m", "impactfv.cli", "run", str(path), "-o",
-                           str(tmp_path / "out")], capture_output=True, text=True)
+    proc = run_cli("run", path, "-o", tmp_path / "out")
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "overlap" in proc.stderr
 

@@ -2,7 +2,6 @@
 
 import copy
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -15,6 +14,8 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
+from conftest import run_cli
 
 from impactfv import InputError, SimulationError, load_case, run
 from impactfv.mesh.trimesh import TriMesh, validate_and_orient
@@ -64,9 +65,7 @@ model = "stick"
 """
 
 
-def cli(*args, **kw):
-    return subprocess.run([sys.executable, "-m", "impactfv.cli", *map(str, args)],
-                          capture_output=True, text=True, **kw)
+cli = run_cli
 
 
 def assert_outputs_readable(folder: Path):
@@ -294,3 +293,10 @@ def test_checkpoint_and_output_intervals_too_small_are_refused(tmp_path):
     case["run"]["output_interval"] = 1e-300
     with pytest.raises(InputError, match="output_interval"):
         load_case(case)
+
+
+def test_restart_is_refused_for_finite_element_methods(tmp_path):
+    case = two_bars(divisions=(8, 2), end_time=1e-6)
+    case["run"]["method"] = "fem-q4md"
+    with pytest.raises(InputError, match="fv"):
+        run(load_case(case), tmp_path, checkpoint_every=1e-7)

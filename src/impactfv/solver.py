@@ -128,23 +128,20 @@ class FVSolver:
                 "cfl or a finer mesh", step=step, time=t, body=body.name, node=bad - body.start)
 
     def body_fields(self) -> dict[str, dict[str, np.ndarray]]:
+        """The point fields of each body (copies), plus its mesh and F."""
         m = self.model
-        n = m.n_nodes
-        pressure, vm, jac = np.empty(n), np.empty(n), np.empty(n)
-        K.point_fields(self.F, m.node_mat, m.mat, pressure, vm, jac)
+        data = self.point_data()
+        data.pop("body")
         out = {}
         for b in m.bodies:
             s = slice(b.start, b.stop)
-            out[b.name] = {
-                "reference_points": m.X[s].copy(), "points": self.x[s].copy(),
-                "triangles": b.triangles - b.start, "velocity": self.v[s].copy(),
-                "displacement": self.x[s] - m.X[s], "pressure": pressure[s].copy(),
-                "von_mises": vm[s].copy(), "J": jac[s].copy(),
-                "F": self.F[s].reshape(-1, 2, 2).copy(),
-            }
-            if self.contact is not None:
-                out[b.name]["contact_status"] = self.contact.state[s].copy()
-                out[b.name]["contact_pressure"] = -self.contact.tstar_n[s]
+            fields = {key: np.array(value[s]) for key, value in data.items()}
+            if "contact_status" in fields:
+                fields["contact_status"] = self.contact.state[s].copy()
+            fields.update(reference_points=m.X[s].copy(), points=self.x[s].copy(),
+                          triangles=b.triangles - b.start,
+                          F=self.F[s].reshape(-1, 2, 2).copy())
+            out[b.name] = fields
         return out
 
     def point_data(self) -> dict[str, np.ndarray]:
@@ -200,6 +197,9 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     :class:`Interrupted` (the CLI turns it into exit code 130 or 143).
     """
     if case.run.method != "fv":
+        if restart or checkpoint_every:
+            raise InputError(f"{case.source}: run.method: checkpoints and restart are "
+                             f"available for method \"fv\" only, not {case.run.method!r}")
         from .fem.driver import run_fem_case
         return run_fem_case(case, output_dir, progress)
     if (restart or checkpoint_every or handle_signals) and output_dir is None:
