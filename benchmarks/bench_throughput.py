@@ -6,16 +6,16 @@
 
 One neo-Hookean square body (density 8930, E 585e6, nu 0.495, velocity
 ["10*sin(300*x)", "5*cos(300*y)"], traction-free edges, "alternate" rectangle mesh) is
-built with ``impactfv.load_case(dict)`` and ``impactfv.solver.FVSolver(case)``. For each size,
+built with ``impactfv.load_case(dict)`` and ``impactfv.scheme.stepper.FVStepper(case)``. For each size,
 order 2 (Barth-Jespersen) and order 1, and each numba thread count, the script reports:
 
 * node-stage updates per second = nodes x 2 RK stages x steps / seconds spent in
-  ``solver.step(dt)`` (after warm-up steps, so numba compilation is excluded);
+  ``stepper.step(dt)`` (after warm-up steps, so numba compilation is excluded);
 * the time per step split by kernel (compute_stress, velocity_gradient, limit_gradient,
   assemble_rates, rk_update inside ``step``; stable_time_step, state_is_bad and monitors that
   ``impactfv.run`` calls once per step outside it). The split is taken in a second pass in
   which every kernel of ``impactfv.scheme.kernels`` is temporarily replaced by a timing
-  wrapper, so it follows whatever arguments the solver passes; "other" is step time not
+  wrapper, so it follows whatever arguments the stepper passes; "other" is step time not
   spent in a kernel (array copies, Python);
 * peak resident memory (ru_maxrss) per node. Each size runs in a fresh subprocess, so sizes
   do not pollute each other; the figure is (peak - baseline) / nodes, where the baseline is
@@ -160,24 +160,24 @@ def warm_up(solver, steps: int = 3):
     """Compile / load from the numba cache and touch every array."""
     for _ in range(steps):
         solver.step(solver.stable_dt())
-        solver.check_state(0, 0.0)
-        solver.energies()
+        solver.check(0, 0.0)
+        solver.history_row()
 
 
 def throughput_block(solver, steps: int) -> list[float]:
-    """Seconds of each of ``steps`` solver.step(dt) calls (stable_dt outside the timing)."""
+    """Seconds of each of ``steps`` stepper.step(dt) calls (stable_dt outside the timing)."""
     times = []
     for _ in range(steps):
         dt = solver.stable_dt()
         t0 = time.perf_counter()
         solver.step(dt)
         times.append(time.perf_counter() - t0)
-    solver.check_state(steps, 0.0)
+    solver.check(steps, 0.0)
     return times
 
 
 def breakdown_block(solver, steps: int, K) -> dict:
-    """The loop body of impactfv.run (stable_dt, step, check_state, monitors) with every
+    """The loop body of impactfv.run (stable_dt, step, check, monitors) with every
     kernel wrapped by a timer."""
     with KernelTimer(K) as timer:
         step_total = 0.0
@@ -187,8 +187,8 @@ def breakdown_block(solver, steps: int, K) -> dict:
             t0 = time.perf_counter()
             solver.step(dt)
             step_total += time.perf_counter() - t0
-            solver.check_state(i, 0.0)
-            solver.energies()
+            solver.check(i, 0.0)
+            solver.history_row()
         loop_total = time.perf_counter() - t_loop
     return {"loop": loop_total, "step": step_total, "seconds": dict(timer.seconds),
             "calls": dict(timer.calls)}
@@ -226,17 +226,17 @@ def worker(nodes_requested: int, threads: list[int], steps: int | None, orders: 
 
     import impactfv
     from impactfv.scheme import kernels as K
-    from impactfv.solver import FVSolver
+    from impactfv.scheme.stepper import FVStepper
 
     # warm-up on a tiny case: loads every kernel from the numba cache (or compiles it)
     for order in orders:
-        tiny = FVSolver(impactfv.load_case(make_case(8, order)))
+        tiny = FVStepper(impactfv.load_case(make_case(8, order)))
         for t in threads:
             numba.set_num_threads(t)
             for _ in range(2):
                 tiny.step(tiny.stable_dt())
-            tiny.check_state(0, 0.0)
-            tiny.energies()
+            tiny.check(0, 0.0)
+            tiny.history_row()
     del tiny
     baseline = maxrss_bytes()
     baseline_now = current_rss_bytes()
@@ -245,9 +245,9 @@ def worker(nodes_requested: int, threads: list[int], steps: int | None, orders: 
     t0 = time.perf_counter()
     case = impactfv.load_case(make_case(side, orders[0]))
     t1 = time.perf_counter()
-    solver = FVSolver(case)
+    solver = FVStepper(case)
     t2 = time.perf_counter()
-    model = solver.model
+    model = solver.disc
     n = model.n_nodes
     steps = steps or auto_steps(n)
     rss_after_setup = current_rss_bytes()
@@ -259,7 +259,7 @@ def worker(nodes_requested: int, threads: list[int], steps: int | None, orders: 
         # counts are interleaved so that a burst of outside load hits them alike
         case.run = case.run.model_copy(update={
             "order": order, "limiter": "barth_jespersen" if order == 2 else "none"})
-        solvers = {t: FVSolver(case, model=model) for t in threads}
+        solvers = {t: FVStepper(case, disc=model) for t in threads}
         for t in threads:
             numba.set_num_threads(t)
             warm_up(solvers[t])

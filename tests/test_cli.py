@@ -128,9 +128,9 @@ def test_gmsh_file_with_physical_groups(tmp_path):
     lines = np.concatenate([m.regions["xmin"], m.regions["ymin"]])
     tags = np.concatenate([np.full(len(m.regions["xmin"]), 1), np.full(len(m.regions["ymin"]), 2)])
     mesh = meshio.Mesh(np.column_stack([m.points, np.zeros(len(m.points))]),
-                       [("line", lines), ("triangle", m.triangles)],
-                       cell_data={"gmsh:physical": [tags, np.full(len(m.triangles), 3)],
-                                  "gmsh:geometrical": [tags, np.full(len(m.triangles), 3)]},
+                       [("line", lines), ("triangle", m.cells)],
+                       cell_data={"gmsh:physical": [tags, np.full(len(m.cells), 3)],
+                                  "gmsh:geometrical": [tags, np.full(len(m.cells), 3)]},
                        field_data={"clamp": np.array([1, 1]), "floor": np.array([2, 1]),
                                    "domain": np.array([3, 2])})
     meshio.write(tmp_path / "bar.msh", mesh, file_format="gmsh22", binary=False)

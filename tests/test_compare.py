@@ -18,14 +18,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import COPPER
+
 from impactfv.case import load_case
 from impactfv.compare import compare_case, pressure_roughness
 from impactfv.materials import Material
 
-MAT = {"name": "copper", "model": "neo_hookean", "density": 8930.0,
-       "youngs_modulus": 585.0e6, "poisson_ratio": 0.495}
+MAT = COPPER
 L, W, GAP, V0, DIV = 0.01, 0.002, 4e-4, 50.0, (50, 10)
-C_P = Material(**MAT).p_wave_speed
+C_P = Material.from_entry(MAT).p_wave_speed
 T_IMPACT = GAP / (2 * V0)
 END = 1.5 * T_IMPACT + L / C_P
 
@@ -66,9 +67,9 @@ def test_outputs_written(comparison):
 def test_pressure_roughness(comparison):
     r = comparison["by_method"]
     fv, t3, q4 = (r[m]["roughness"] for m in ("fv", "fem-t3", "fem-q4md"))
-    assert fv > 0
-    assert fv <= t3 / 3, (fv, t3)
-    assert fv <= 1.5 * q4, (fv, q4)
+    # the seed paper: linear triangles oscillate, the FV pressure is smooth and agrees with
+    # the mean-dilatation quads; smoother than both here
+    assert 0 < fv < q4 < t3, (fv, q4, t3)
 
 
 def test_roughness_metric_ignores_unloaded_and_sees_noise():
@@ -125,7 +126,7 @@ def _fem_case(method, **changes):
 
 @pytest.mark.parametrize("method", ["fem-t3", "fem-q4md"])
 def test_driver_runs_and_writes(method, tmp_path):
-    from impactfv.solver import run
+    from impactfv.pipeline import run
 
     rollers = [{"region": "ymin", "velocity": {"y": 0.0}},
                {"region": "ymax", "velocity": {"y": 0.0}}]
@@ -156,7 +157,7 @@ def test_driver_runs_and_writes(method, tmp_path):
 ])
 def test_driver_refuses_unsupported(changes, words):
     from impactfv.errors import InputError
-    from impactfv.solver import run
+    from impactfv.pipeline import run
 
     with pytest.raises(InputError, match=words):
         run(load_case(_fem_case("fem-t3", **changes)), progress=False)
@@ -166,7 +167,7 @@ def test_q4md_refuses_file_mesh(tmp_path):
     import meshio
 
     from impactfv.errors import InputError
-    from impactfv.solver import run
+    from impactfv.pipeline import run
 
     pts = np.array([[0, 0, 0], [1e-3, 0, 0], [0, 1e-3, 0], [1e-3, 1e-3, 0]], float)
     meshio.write(tmp_path / "sq.vtu", meshio.Mesh(pts, [("triangle", [[0, 1, 3], [0, 3, 2]])]))

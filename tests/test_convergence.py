@@ -1,4 +1,4 @@
-"""Observed order of accuracy on the smooth standing wave (numerics.md H.4)."""
+"""Observed order of accuracy on the smooth standing wave (docs/validation.md)."""
 
 import numpy as np
 import pytest

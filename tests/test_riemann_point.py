@@ -1,40 +1,70 @@
-"""Acoustic Riemann point functions (numerics.md B.3, B.4(b))."""
+"""Acoustic Riemann point functions of the scheme (docs/theory.md, "Interface flux",
+"Boundaries"), in 2D and 3D."""
 
 import numpy as np
 import pytest
 
-from impactfv.scheme.riemann import boundary_state, interior_traction, spatial_normal
+from impactfv.scheme.riemann import (boundary_state, impedance_times, spatial_normal,
+                                     upwind_traction)
 
 ZP, ZS = 1.3e7, 1.3e6
 
 
-def test_equal_states_give_the_physical_traction():
-    t = interior_traction(5.0, -3.0, 0.0, 0.0, ZP, ZS, 0.6, 0.8)
-    assert t == (5.0, -3.0)
+def unit(v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
 
 
-def test_upwind_term_follows_the_impedances():
-    n = (0.6, 0.8)
-    dv_normal = (2 * 0.6, 2 * 0.8)
-    t = interior_traction(0.0, 0.0, *dv_normal, ZP, ZS, *n)
-    assert np.allclose(t, (ZP * 0.6, ZP * 0.8))
-    dv_tangent = (-0.8, 0.6)
-    t = interior_traction(0.0, 0.0, *dv_tangent, ZP, ZS, *n)
-    assert np.allclose(t, (-0.5 * ZS * 0.8, 0.5 * ZS * 0.6))
+def traction(tbar, dv, n):
+    t = np.zeros(len(n))
+    upwind_traction(np.asarray(tbar, float), np.asarray(dv, float), ZP, ZS, n, t)
+    return t
 
 
-@pytest.mark.parametrize("fix", [(False, False), (True, False), (False, True), (True, True)])
+@pytest.mark.parametrize("n", [unit([0.6, 0.8]), unit([0.3, -0.5, 0.8])])
+def test_equal_states_give_the_physical_traction(n):
+    tbar = np.arange(len(n)) + 5.0
+    assert np.array_equal(traction(tbar, np.zeros(len(n)), n), tbar)
+
+
+@pytest.mark.parametrize("n", [unit([0.6, 0.8]), unit([0.3, -0.5, 0.8])])
+def test_upwind_term_follows_the_impedances(n):
+    """A jump along n is resisted by rho c_p, one across n by rho c_s (each half)."""
+    assert np.allclose(traction(np.zeros(len(n)), 2 * n, n), ZP * n)
+    across = np.cross(n, [1.0, 0.0, 0.0])[:len(n)] if len(n) == 3 else np.array([-n[1], n[0]])
+    across = unit(across)
+    assert np.allclose(traction(np.zeros(len(n)), across, n), 0.5 * ZS * across)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_spatial_normal_is_nanson(d):
+    rng = np.random.default_rng(2)
+    F = np.eye(d) + 0.2 * rng.standard_normal((d, d))
+    N = unit(rng.standard_normal(d))
+    n = np.zeros(d)
+    spatial_normal(F, N, n)
+    assert np.allclose(n, unit(np.linalg.inv(F).T @ N), rtol=1e-12)
+
+
+@pytest.mark.parametrize("fix", [(False, False), (True, False), (False, True), (True, True),
+                                 (False, False, False), (True, False, True), (False, True, False)])
 def test_boundary_state_meets_prescriptions_and_characteristic(fix):
-    n = spatial_normal(1.1, 0.1, -0.05, 0.95, 1.0, 0.0)
-    v, t = (1.0, -2.0), (3.0e6, 1.0e6)
-    vs, ts = (0.5, -0.25), (-1.0e6, 2.0e6)
-    vc1, vc2, tc1, tc2 = boundary_state(*v, *t, ZP, ZS, *n, *fix, *vs, *ts)
-    for i, (vc, tc) in enumerate(((vc1, tc1), (vc2, tc2))):
+    d = len(fix)
+    rng = np.random.default_rng(len(fix) + sum(fix))
+    F = np.eye(d) + 0.1 * rng.standard_normal((d, d))
+    n = np.zeros(d)
+    spatial_normal(F, unit(np.eye(d)[0] + 0.1), n)
+    v, t = rng.standard_normal(d), 1e6 * rng.standard_normal(d)
+    vs, ts = rng.standard_normal(d), 1e6 * rng.standard_normal(d)
+    vC, tC = np.zeros(d), np.zeros(d)
+    boundary_state(v, t, ZP, ZS, n, np.array(fix), vs, ts, np.zeros((d, d)), np.zeros(d), vC,
+                   tC)
+    for i in range(d):
         if fix[i]:
-            assert vc == pytest.approx(vs[i])
+            assert vC[i] == pytest.approx(vs[i], rel=1e-14)
         else:
-            assert tc == pytest.approx(ts[i])
-    # outgoing characteristic: tC - t = Z (vC - v)
-    n = np.array(n)
-    Z = ZP * np.outer(n, n) + ZS * (np.eye(2) - np.outer(n, n))
-    assert np.allclose(np.array([tc1, tc2]) - t, Z @ (np.array([vc1, vc2]) - v), rtol=1e-10)
+            assert tC[i] == pytest.approx(ts[i], rel=1e-12)
+    # the outgoing characteristic: tC - t = Z (vC - v)
+    Zdv = np.zeros(d)
+    impedance_times(ZP, ZS, n, vC - v, Zdv)
+    assert np.allclose(tC - t, Zdv, rtol=1e-10, atol=1e-6)

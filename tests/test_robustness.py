@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from conftest import run_cli
 
 from impactfv import InputError, SimulationError, load_case, run
-from impactfv.mesh.trimesh import TriMesh, validate_and_orient
+from impactfv.mesh.core import Mesh, validate_and_orient
 from impactfv.validation.bars import two_bars
 
 FAILING = """
@@ -176,25 +176,25 @@ def test_sigkill_leaves_every_file_readable(tmp_path):
     assert_outputs_readable(out)
     for ckpt in (out / "checkpoints").glob("*.npz"):
         with np.load(ckpt, allow_pickle=False) as data:
-            assert np.all(np.isfinite(data["v"]))
+            assert np.all(np.isfinite(data["state_v"]))
 
 
 def test_mesh_checks_name_the_problem():
     pts = np.array([[0, 0], [1, 0], [0, 1], [1, 1], [5, 5]], float)
     with pytest.raises(InputError, match="belong to no triangle"):
-        validate_and_orient(TriMesh(pts, np.array([[0, 1, 2], [1, 3, 2]])), "m.msh")
+        validate_and_orient(Mesh(pts, np.array([[0, 1, 2], [1, 3, 2]])), "m.msh")
     dup = np.array([[0, 0], [1, 0], [0, 1], [1, 0]], float)
     with pytest.raises(InputError, match="duplicated node"):
-        validate_and_orient(TriMesh(dup, np.array([[0, 1, 2], [3, 2, 0]])), "m.msh")
+        validate_and_orient(Mesh(dup, np.array([[0, 1, 2], [3, 2, 0]])), "m.msh")
     fan = np.array([[0, 0], [1, 0], [0, 1], [0, -1], [1, 1]], float)
     with pytest.raises(InputError, match="more than two"):
-        validate_and_orient(TriMesh(fan, np.array([[0, 1, 2], [0, 1, 3], [0, 1, 4]])), "m.msh")
+        validate_and_orient(Mesh(fan, np.array([[0, 1, 2], [0, 1, 3], [0, 1, 4]])), "m.msh")
     square = np.array([[0, 0], [1, 0], [0, 1], [1, 1]], float)
     with pytest.raises(InputError, match="empty"):
-        validate_and_orient(TriMesh(square, np.array([[0, 1, 2], [1, 3, 2]]),
+        validate_and_orient(Mesh(square, np.array([[0, 1, 2], [1, 3, 2]]),
                                     {"left": np.zeros((0, 2), int)}), "m.msh")
     # clockwise triangles are accepted and turned counter-clockwise
-    ok = validate_and_orient(TriMesh(square, np.array([[0, 2, 1], [1, 2, 3]])), "m.msh")
+    ok = validate_and_orient(Mesh(square, np.array([[0, 2, 1], [1, 2, 3]])), "m.msh")
     assert np.all(ok.triangle_areas() > 0)
 
 
@@ -295,8 +295,19 @@ def test_checkpoint_and_output_intervals_too_small_are_refused(tmp_path):
         load_case(case)
 
 
-def test_restart_is_refused_for_finite_element_methods(tmp_path):
-    case = two_bars(divisions=(8, 2), end_time=1e-6)
-    case["run"]["method"] = "fem-q4md"
-    with pytest.raises(InputError, match="fv"):
-        run(load_case(case), tmp_path, checkpoint_every=1e-7)
+@pytest.mark.parametrize("method", ["fem-t3", "fem-q4md"])
+def test_finite_element_runs_restart_like_fv_runs(tmp_path, method):
+    """One pipeline for every method: FE runs checkpoint and restart too, to the same result."""
+    case = two_bars(divisions=(16, 2), end_time=1.2e-5)
+    case["run"]["method"] = method
+    full = run(load_case(case), tmp_path / "full", checkpoint_every=3e-6)
+    checkpoints = sorted((tmp_path / "full" / "checkpoints").glob("*.npz"))
+    assert len(checkpoints) >= 3
+    part = tmp_path / "part"
+    (part / "checkpoints").mkdir(parents=True)
+    import shutil
+    shutil.copy(checkpoints[1], part / "checkpoints" / checkpoints[1].name)
+    resumed = run(load_case(case), part, restart=True)
+    for key, value in full.history.items():
+        assert np.allclose(resumed.history[key], value, rtol=1e-12, atol=1e-300,
+                           equal_nan=True), key

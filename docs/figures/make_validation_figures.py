@@ -49,7 +49,7 @@ fig.tight_layout()
 fig.savefig(HERE / "standing_wave_convergence.png", dpi=120)
 
 # -- bar impacts against the 1D analytic solution
-M = Material(**SEED_MATERIAL)
+M = Material.from_entry(SEED_MATERIAL)
 L, W, v0 = 0.01, 0.001, 50.0
 ref = W * M.p_impedance * v0
 fig, ax = plt.subplots(figsize=(7, 3.6))

@@ -5,6 +5,6 @@ __version__ = "0.1.0"
 
 from .errors import InputError, SimulationError  # noqa: E402
 from .case import load_case  # noqa: E402
-from .solver import run  # noqa: E402
+from .pipeline import run  # noqa: E402
 
 __all__ = ["load_case", "run", "InputError", "SimulationError", "__version__"]

@@ -1,7 +1,7 @@
 """The case file: a strict schema (an unknown key is an error) and ``load_case``.
 
 A case is a TOML file or a dict of the same structure. Validation happens here, once; the
-solver receives a validated :class:`Case` with every body's mesh already read and checked.
+run pipeline receives a validated :class:`Case` with every body's mesh already read and checked.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from .expr import compile_expression
 from .materials import Material
 from .mesh.generators import DIAGONAL_PATTERNS, rectangle
 from .mesh.reader import read_mesh
-from .mesh.trimesh import TriMesh, validate_and_orient
+from .mesh.core import Mesh, validate_and_orient
 
 LIMITERS = ("none", "barth_jespersen", "venkatakrishnan")
 METHODS = ("fv", "fem-t3", "fem-q4md")
@@ -91,6 +91,10 @@ class MeshSpec(_Strict):
 class VelocityComponents(_Strict):
     x: Optional[float] = Field(None, allow_inf_nan=False)
     y: Optional[float] = Field(None, allow_inf_nan=False)
+
+    def components(self, dim: int) -> tuple:
+        """The prescribed value of each of the ``dim`` components (None: not prescribed)."""
+        return (self.x, self.y)[:dim]
 
 
 class BoundarySpec(_Strict):
@@ -175,7 +179,7 @@ class CaseSpec(_Strict):
 class Body:
     """A validated body: its mesh, material, initial velocity and boundary conditions."""
 
-    def __init__(self, spec: BodySpec, material: Material, mesh: TriMesh, velocity):
+    def __init__(self, spec: BodySpec, material: Material, mesh: Mesh, velocity):
         self.spec = spec
         self.name = spec.name
         self.material = material
@@ -266,7 +270,7 @@ def _check_names(spec: CaseSpec, source: str):
                                  f"(defined: {', '.join(sorted(bodies))})")
 
 
-def _build_mesh(spec: MeshSpec, base: Path, key: str) -> TriMesh:
+def _build_mesh(spec: MeshSpec, base: Path, key: str) -> Mesh:
     if spec.generator == "rectangle":
         mesh = rectangle(spec.origin, spec.size, spec.divisions, spec.pattern)
         source = key

@@ -7,17 +7,19 @@ import math
 import numpy as np
 
 from .case import Case
-from .model import build_model
+from .materials import CP
+from .scheme.discretisation import discretise
 
-# float64 work arrays per node the solver allocates beyond the model (see solver.FVSolver):
-# v, F, x, their stage copies, P, grad, vmin, vmax, phi, force, dF
-_SOLVER_DOUBLES_PER_NODE = 2 + 4 + 2 + 8 + 4 + 4 + 6 + 2 + 4
+# float64 work arrays per node the FV stepper allocates beyond the discretisation
+# (scheme.stepper.FVStepper): v, F, x, their stage copies, P, grad, vmin, vmax, phi, force, dF
+def _stepper_doubles_per_node(d):
+    return 2 * (d + d * d + d) + d * d + d * d + 3 * d + d + d * d
 
 
 def check_report(case: Case) -> str:
-    model = build_model(case)
+    disc = discretise(case)
     lines = [f"case: {case.source}" + (f"  ({case.title})" if case.title else "")]
-    for body, layout in zip(case.bodies, model.bodies):
+    for body in case.bodies:
         q = body.mesh.quality()
         mat = body.material
         lines.append(f"body {body.name!r}: {q['nodes']} nodes, {q['triangles']} triangles, "
@@ -25,29 +27,29 @@ def check_report(case: Case) -> str:
         lines.append(f"  edges {q['edge_length_min']:.4g} .. {q['edge_length_max']:.4g} m, "
                      f"max aspect ratio {q['aspect_ratio_max']:.3g}, "
                      f"min angle {q['min_angle_deg']:.1f} deg")
-        lines.append(f"  material {mat.name!r} ({mat.model}): c_p = {mat.p_wave_speed:.2f} m/s, "
+        lines.append(f"  material {mat.name!r} ({mat.law}): c_p = {mat.p_wave_speed:.2f} m/s, "
                      f"c_s = {mat.s_wave_speed:.2f} m/s, impedance rho c_p = "
                      f"{mat.p_impedance:.4g} kg/(m^2 s)")
         regions = ", ".join(f"{k} ({len(v)} edges)" for k, v in sorted(body.mesh.regions.items()))
         lines.append(f"  boundary regions: {regions or 'none'}")
-    h_over_c = float(np.min(model.node_length / model.mat[model.node_mat, 4]))
+    h_over_c = float(np.min(disc.node_length / disc.material_table[disc.node_material, CP]))
     dt = case.run.cfl * h_over_c
     steps = math.ceil(case.run.end_time / dt)
-    nbytes = sum(a.nbytes for a in vars(model).values() if isinstance(a, np.ndarray))
-    nbytes += 8 * _SOLVER_DOUBLES_PER_NODE * model.n_nodes
+    nbytes = sum(a.nbytes for a in vars(disc).values() if isinstance(a, np.ndarray))
+    nbytes += 8 * _stepper_doubles_per_node(disc.dim) * disc.n_nodes
     lines.append(f"time step: {dt:.4e} s (cfl {case.run.cfl}) at the start; about {steps} steps "
                  f"to {case.run.end_time:.4e} s ({2 * steps} Runge-Kutta stages)")
     lines.append(f"scheme: {case.run.method}, order {case.run.order}, limiter "
                  f"{case.run.limiter}")
     lines.append(f"memory: about {nbytes / 2**20:.1f} MiB for the state and work arrays "
-                 f"({nbytes / model.n_nodes:.0f} bytes per node, {model.n_nodes} nodes, "
-                 f"{model.n_edges} edges)")
+                 f"({nbytes / disc.n_nodes:.0f} bytes per node, {disc.n_nodes} nodes, "
+                 f"{disc.n_edges} edges)")
     if case.contacts:
-        from .contact import find_overlaps
+        from .geometry.overlap import find_overlaps
         for k, c in enumerate(case.contacts):
             partner = "a rigid wall" if c.wall is not None else repr(c.bodies[1])
             lines.append(f"contact[{k}]: {c.bodies[0]!r} with {partner}, model {c.model}")
-        problems = find_overlaps(case, model)
+        problems = find_overlaps(case)
         lines += [f"PROBLEM: {p} (run will refuse this case)" for p in problems]
         if not problems:
             lines.append("no bodies overlap at the start")

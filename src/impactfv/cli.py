@@ -12,7 +12,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import InputError, SimulationError
-from .solver import Interrupted
+from .pipeline import Interrupted
 
 
 def main(argv=None) -> int:
@@ -73,7 +73,7 @@ def _positive_float(text):
 
 def _run(args) -> int:
     from .case import load_case
-    from .solver import run
+    from .pipeline import run
 
     case = load_case(args.case)
     if args.restart:

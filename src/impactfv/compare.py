@@ -51,6 +51,7 @@ import numpy as np
 
 from .case import Case, load_case
 from .errors import InputError
+from .mesh.edges import unique_edges
 
 METHODS = ("fv", "fem-t3", "fem-q4md")
 LABELS = {"fv": "FV (upwind vertex-centred)", "fem-t3": "FE T3 (linear triangles)",
@@ -87,8 +88,8 @@ def reference_pressure(case: Case, k: int = 0) -> dict:
     info = {}
     for key, body in (("a", a), ("b", b)):
         pts = body.mesh.points
-        area = _areas(pts, body.mesh.triangles)
-        centre = np.array([np.sum(area * pts[body.mesh.triangles][:, :, d].mean(axis=1))
+        area = _areas(pts, body.mesh.cells)
+        centre = np.array([np.sum(area * pts[body.mesh.cells][:, :, d].mean(axis=1))
                            for d in range(2)]) / area.sum()
         v = body.initial_velocity(pts).mean(axis=0)
         info[key] = (centre, v, body.material)
@@ -118,12 +119,10 @@ def _cells(fields):
 
 def pressure_roughness(bodies: dict, p_ref: float, threshold: float = 0.01) -> float:
     """Median over loaded nodes of |p_i - mean of p over edge neighbours| / p_ref."""
-    from .fem.mesh import mesh_edges
-
     values = []
     for f in bodies.values():
         p = np.asarray(f["pressure"], float)
-        e = mesh_edges(_cells(f))
+        e = unique_edges(_cells(f))
         n = len(p)
         s = np.bincount(e[:, 0], p[e[:, 1]], n) + np.bincount(e[:, 1], p[e[:, 0]], n)
         c = np.bincount(e.ravel(), minlength=n)
@@ -135,11 +134,9 @@ def pressure_roughness(bodies: dict, p_ref: float, threshold: float = 0.01) -> f
 
 
 def min_edge_length(bodies: dict) -> float:
-    from .fem.mesh import mesh_edges
-
     h = np.inf
     for f in bodies.values():
-        e = mesh_edges(_cells(f))
+        e = unique_edges(_cells(f))
         X = f["reference_points"]
         h = min(h, float(np.linalg.norm(X[e[:, 1]] - X[e[:, 0]], axis=1).min()))
     return h
@@ -177,7 +174,7 @@ def metrics(method, result, ref, case) -> dict:
     hmin = min_edge_length(bodies)
     scale = 0.0
     for body in case.bodies:
-        pts, tri = body.mesh.points, body.mesh.triangles
+        pts, tri = body.mesh.points, body.mesh.cells
         mass = body.material.density * _areas(pts, tri).sum()
         scale += mass * float(np.linalg.norm(body.initial_velocity(pts).mean(axis=0)))
     P = np.column_stack([h["momentum_x"], h["momentum_y"]])
@@ -306,7 +303,7 @@ def compare_case(case: Case, output_dir=None, divisions=None, methods=METHODS,
     Returns ``{"rows": [...], "results": {method: RunResult}, "reference": {...},
     "output_dir": Path}``.
     """
-    from .solver import run
+    from .pipeline import run
 
     out = Path(output_dir) if output_dir is not None else \
         Path("results") / f"{case.stem}_compare"

@@ -1,19 +1,21 @@
-"""Hyperelastic material laws in plane strain, as small pure point functions.
+"""Material laws: hyperelastic stress and energy as small point functions of F.
 
-The point functions take and return scalars (no arrays, no numba specifics) so that the
-same source can be compiled for a CPU loop (``numba.njit``) or, later, for a GPU.
+The point functions take the deformation gradient ``F`` (a d x d array, d = 2 for plane
+strain or 3) and ``props``, one row of the material table (columns RHO .. LAW below); they
+never allocate, so the same source compiles for a CPU loop (numba) or a GPU.
 
-Plane strain: the 3D deformation gradient is diag(F, 1) with F the 2x2 in-plane block;
-J = det F and cof F = J F^-T = [[F22, -F21], [-F12, F11]].
+Plane strain (d = 2): the 3D deformation gradient is diag(F, 1), so J = det F, the
+out-of-plane stretch is 1 and F3:F3 = F:F + 1. Written with ``F:F + (3 - d)`` the same
+formula serves both dimensions.
 
-Nearly incompressible neo-Hookean (numerics.md F, polyconvex split of Bonet et al.)::
+Nearly incompressible neo-Hookean (the polyconvex split of Bonet et al.; docs/theory.md)::
 
-    W = mu/2 J^(-2/3) (F:F + 1) - 3 mu/2 + kappa/2 (J - 1)^2
-    P = mu J^(-2/3) F + [ -mu/3 J^(-5/3) (F:F + 1) + kappa (J - 1) ] cof F
+    W = mu/2 J^(-2/3) F3:F3 - 3 mu/2 + kappa/2 (J - 1)^2
+    P = mu J^(-2/3) F + [ -mu/3 J^(-5/3) F3:F3 + kappa (J - 1) ] cof F
 
 Linear elastic (small strain, P = sigma)::
 
-    eps = sym(F) - I,  sigma = lambda tr(eps) I + 2 mu eps,  sigma_zz = lambda tr(eps)
+    eps = sym(F) - I,  sigma = lambda tr(eps) I + 2 mu eps   (plane strain: sigma_zz = lambda tr eps)
 """
 
 from __future__ import annotations
@@ -21,24 +23,32 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from .tensors import cofactor_entry, determinant, smallest_stretch_squared
+
 NEO_HOOKEAN = 0
 LINEAR_ELASTIC = 1
-MODEL_IDS = {"neo_hookean": NEO_HOOKEAN, "linear_elastic": LINEAR_ELASTIC}
+LAW_IDS = {"neo_hookean": NEO_HOOKEAN, "linear_elastic": LINEAR_ELASTIC}
 
-# Column layout of the material table the kernels read (one row per material).
-RHO, MU, LAMBDA, KAPPA, CP, CS, MODEL = range(7)
+# Columns of the material table the kernels read (one row per material).
+RHO, MU, LAMBDA, KAPPA, CP, CS, LAW = range(7)
 N_PROPS = 7
 
 
 @dataclass(frozen=True)
 class Material:
-    """An isotropic elastic material; SI units."""
+    """An isotropic elastic material; SI units. ``law`` is the material law's name."""
 
     name: str
-    model: str
+    law: str
     density: float
     youngs_modulus: float
     poisson_ratio: float
+
+    @classmethod
+    def from_entry(cls, entry: dict) -> "Material":
+        """From a ``[[material]]`` entry of a case (its ``model`` key names the law)."""
+        return cls(entry["name"], entry.get("model", "neo_hookean"), entry["density"],
+                   entry["youngs_modulus"], entry["poisson_ratio"])
 
     @property
     def mu(self) -> float:
@@ -67,81 +77,134 @@ class Material:
         return self.density * self.p_wave_speed
 
     @property
-    def model_id(self) -> int:
-        return MODEL_IDS[self.model]
+    def s_impedance(self) -> float:
+        return self.density * self.s_wave_speed
 
     def table_row(self) -> list[float]:
         return [self.density, self.mu, self.lam, self.kappa, self.p_wave_speed,
-                self.s_wave_speed, float(self.model_id)]
+                self.s_wave_speed, float(LAW_IDS[self.law])]
 
 
 # --------------------------------------------------------------------------- point functions
 
-def first_piola(f11, f12, f21, f22, mu, lam, kappa, model):
-    """First Piola-Kirchhoff stress P(F) in plane strain. Returns (P11, P12, P21, P22)."""
-    if model == LINEAR_ELASTIC:
-        e11 = f11 - 1.0
-        e22 = f22 - 1.0
-        e12 = 0.5 * (f12 + f21)
-        tr = e11 + e22
-        return (lam * tr + 2.0 * mu * e11, 2.0 * mu * e12,
-                2.0 * mu * e12, lam * tr + 2.0 * mu * e22)
-    J = f11 * f22 - f12 * f21
-    ff = f11 * f11 + f12 * f12 + f21 * f21 + f22 * f22 + 1.0
-    a = mu * J ** (-2.0 / 3.0)
-    b = -mu / 3.0 * J ** (-5.0 / 3.0) * ff + kappa * (J - 1.0)
-    return (a * f11 + b * f22, a * f12 - b * f21, a * f21 - b * f12, a * f22 + b * f11)
+def _squared_norm_3d(F):
+    """F3:F3 of the 3D deformation gradient (plane strain adds the out-of-plane 1)."""
+    d = F.shape[0]
+    s = 0.0
+    for i in range(d):
+        for J in range(d):
+            s += F[i, J] * F[i, J]
+    return s + (3 - d)
 
 
-def strain_energy_density(f11, f12, f21, f22, mu, lam, kappa, model):
+def first_piola(F, props, P):
+    """First Piola-Kirchhoff stress P(F), written into P (d x d)."""
+    d = F.shape[0]
+    mu = props[MU]
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        tr = 0.0
+        for i in range(d):
+            tr += F[i, i] - 1.0
+        for i in range(d):
+            for J in range(d):
+                P[i, J] = _linear_stress(F, i, J, tr, props[LAMBDA], mu)
+        return
+    J_ = determinant(F)
+    a = mu * J_ ** (-2.0 / 3.0)
+    b = -mu / 3.0 * J_ ** (-5.0 / 3.0) * _squared_norm_3d(F) + props[KAPPA] * (J_ - 1.0)
+    for i in range(d):
+        for J in range(d):
+            P[i, J] = a * F[i, J] + b * cofactor_entry(F, i, J)
+
+
+def _small_strain(F, i, J):
+    return 0.5 * (F[i, J] + F[J, i]) - (1.0 if i == J else 0.0)
+
+
+def _linear_stress(F, i, J, tr, lam, mu):
+    """sigma_iJ = lambda tr(eps) delta_iJ + 2 mu eps_iJ (small strain)."""
+    return (lam * tr if i == J else 0.0) + 2.0 * mu * _small_strain(F, i, J)
+
+
+def strain_energy_density(F, props):
     """Stored energy per unit reference volume W(F)."""
-    if model == LINEAR_ELASTIC:
-        e11 = f11 - 1.0
-        e22 = f22 - 1.0
-        e12 = 0.5 * (f12 + f21)
-        tr = e11 + e22
-        return 0.5 * lam * tr * tr + mu * (e11 * e11 + e22 * e22 + 2.0 * e12 * e12)
-    J = f11 * f22 - f12 * f21
-    ff = f11 * f11 + f12 * f12 + f21 * f21 + f22 * f22 + 1.0
-    return 0.5 * mu * J ** (-2.0 / 3.0) * ff - 1.5 * mu + 0.5 * kappa * (J - 1.0) ** 2
+    d = F.shape[0]
+    mu = props[MU]
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        tr = 0.0
+        ee = 0.0
+        for i in range(d):
+            tr += F[i, i] - 1.0
+            for J in range(d):
+                ee += _small_strain(F, i, J) ** 2
+        return 0.5 * props[LAMBDA] * tr * tr + mu * ee
+    J_ = determinant(F)
+    return (0.5 * mu * J_ ** (-2.0 / 3.0) * _squared_norm_3d(F) - 1.5 * mu
+            + 0.5 * props[KAPPA] * (J_ - 1.0) ** 2)
 
 
-def cauchy_stress(f11, f12, f21, f22, mu, lam, kappa, model):
-    """Cauchy stress in plane strain. Returns (s11, s12, s22, s33)."""
-    if model == LINEAR_ELASTIC:
-        e11 = f11 - 1.0
-        e22 = f22 - 1.0
-        e12 = 0.5 * (f12 + f21)
-        tr = e11 + e22
-        return (lam * tr + 2.0 * mu * e11, 2.0 * mu * e12, lam * tr + 2.0 * mu * e22, lam * tr)
-    J = f11 * f22 - f12 * f21
-    b11 = f11 * f11 + f12 * f12
-    b12 = f11 * f21 + f12 * f22
-    b22 = f21 * f21 + f22 * f22
-    trb = b11 + b22 + 1.0
-    c = mu * J ** (-5.0 / 3.0)
-    p = kappa * (J - 1.0)
-    return (c * (b11 - trb / 3.0) + p, c * b12, c * (b22 - trb / 3.0) + p,
-            c * (1.0 - trb / 3.0) + p)
+def cauchy_stress(F, props, sigma):
+    """Cauchy stress sigma = P F^T / J into sigma (d x d); returns the out-of-plane normal
+    stress sigma_zz of plane strain (0 when d = 3, where sigma holds it)."""
+    d = F.shape[0]
+    mu = props[MU]
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        tr = 0.0
+        for i in range(d):
+            tr += F[i, i] - 1.0
+        for i in range(d):
+            for J in range(d):
+                sigma[i, J] = _linear_stress(F, i, J, tr, props[LAMBDA], mu)
+        return props[LAMBDA] * tr if d == 2 else 0.0
+    # sigma = mu J^(-5/3) dev(b) + kappa (J - 1) I with b = F F^T (b3 = diag(b, 1) in 2D)
+    for i in range(d):
+        for k in range(d):
+            b = 0.0
+            for J in range(d):
+                b += F[i, J] * F[k, J]
+            sigma[i, k] = b
+    trb = 0.0
+    for i in range(d):
+        trb += sigma[i, i]
+    trb += 3.0 - d
+    J_ = determinant(F)
+    c = mu * J_ ** (-5.0 / 3.0)
+    p = props[KAPPA] * (J_ - 1.0)
+    for i in range(d):
+        for k in range(d):
+            if i == k:
+                sigma[i, k] = c * (sigma[i, k] - trb / 3.0) + p
+            else:
+                sigma[i, k] = c * sigma[i, k]
+    return c * (1.0 - trb / 3.0) + p if d == 2 else 0.0
 
 
-def pressure_and_von_mises(f11, f12, f21, f22, mu, lam, kappa, model):
-    """Mean pressure -tr(sigma)/3 (compression positive, sigma_zz included) and von Mises."""
-    s11, s12, s22, s33 = cauchy_stress(f11, f12, f21, f22, mu, lam, kappa, model)
-    p = -(s11 + s22 + s33) / 3.0
-    vm = math.sqrt(max(0.5 * ((s11 - s22) ** 2 + (s22 - s33) ** 2 + (s33 - s11) ** 2)
-                       + 3.0 * s12 * s12, 0.0))
-    return p, vm
+def pressure_and_von_mises(F, props, sigma):
+    """Mean pressure -tr(sigma)/3 (compression positive; plane strain includes sigma_zz) and
+    the von Mises stress. ``sigma`` is d x d scratch."""
+    d = F.shape[0]
+    s_zz = cauchy_stress(F, props, sigma)
+    tr = 0.0
+    for i in range(d):
+        tr += sigma[i, i]
+    tr += s_zz
+    p = -tr / 3.0
+    # von Mises = sqrt(3 J2) = sqrt(3/2 s:s), s the deviator of the 3D stress
+    ss = 0.0
+    for i in range(d):
+        for k in range(d):
+            ss += (sigma[i, k] - (tr / 3.0 if i == k else 0.0)) ** 2
+    if d == 2:
+        ss += (s_zz - tr / 3.0) ** 2
+    return p, math.sqrt(max(1.5 * ss, 0.0))
 
 
-def min_stretch(f11, f12, f21, f22):
-    """Smallest principal stretch sqrt(min eig(F^T F)), capped at 1 (out-of-plane stretch)."""
-    c11 = f11 * f11 + f21 * f21
-    c12 = f11 * f12 + f21 * f22
-    c22 = f12 * f12 + f22 * f22
-    half_tr = 0.5 * (c11 + c22)
-    disc = math.sqrt(max(0.25 * (c11 - c22) ** 2 + c12 * c12, 0.0))
-    lam_min2 = half_tr - disc
-    if lam_min2 <= 0.0:
+def min_stretch(F):
+    """Smallest principal stretch sqrt(min eig(F^T F)); in plane strain capped at 1 (the
+    out-of-plane stretch)."""
+    lam2 = smallest_stretch_squared(F)
+    if lam2 <= 0.0:
         return 0.0
-    return min(math.sqrt(lam_min2), 1.0)
+    if F.shape[0] == 2:
+        return min(math.sqrt(lam2), 1.0)
+    return math.sqrt(lam2)

@@ -1,6 +1,6 @@
-"""Contact between deformable bodies and against rigid walls, by acoustic Riemann states."""
+"""Contact between deformable bodies and against rigid walls, by acoustic Riemann states.
 
-from .system import ContactSystem
-from .overlap import find_overlaps
-
-__all__ = ["ContactSystem", "find_overlaps"]
+laws (point functions of seed eqs. 5-8) -> search (partners, gaps) -> overlap (pieces of the
+dual boundary faces in contact) -> riemann_step (states, forces, contact velocities) ->
+driver (ContactSystem: one stage of all of it, and what enters the FV rates).
+"""

@@ -13,7 +13,8 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 
-def _atomic_replace(path: Path, write):
+def atomic_replace(path: Path, write):
+    """Write ``path`` through ``write(file handle)`` into a temporary file, then rename."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -30,7 +31,7 @@ def _atomic_replace(path: Path, write):
 
 
 def atomic_write_text(path, text: str):
-    _atomic_replace(path, lambda fh: fh.write(text.encode("utf-8")))
+    atomic_replace(path, lambda fh: fh.write(text.encode("utf-8")))
 
 
 def write_history_csv(path, history: dict[str, np.ndarray], n_rows: int):
@@ -47,6 +48,12 @@ def write_summary(path, summary: dict):
     atomic_write_text(path, json.dumps(summary, indent=2, sort_keys=False) + "\n")
 
 
+def _three_components(value, dim):
+    if value.ndim == 2 and value.shape[1] == dim and dim < 3:
+        return np.column_stack([value, np.zeros((len(value), 3 - dim))])
+    return value
+
+
 class SnapshotWriter:
     """Writes ``<stem>_NNNN.vtu`` snapshots and keeps ``<stem>.pvd`` indexing them."""
 
@@ -55,20 +62,19 @@ class SnapshotWriter:
         self.stem = stem
         self.entries: list[tuple[float, str]] = []
 
-    def write(self, time: float, points: np.ndarray, triangles: np.ndarray,
+    def write(self, time: float, points: np.ndarray, cells: np.ndarray,
               point_data: dict[str, np.ndarray]):
+        """Add a frame: points (n, d), cells (triangles or quads in 2D, tetrahedra in 3D) and
+        point fields (vectors (n, d) are written with 3 components, as ParaView wants)."""
         import meshio
 
         name = f"{self.stem}_{len(self.entries):04d}.vtu"
-        pts3 = np.column_stack([points, np.zeros(len(points))])
-        data = {}
-        for key, value in point_data.items():
-            value = np.asarray(value, dtype=float)
-            if value.ndim == 2 and value.shape[1] == 2:  # ParaView wants 3-component vectors
-                value = np.column_stack([value, np.zeros(len(value))])
-            data[key] = value
-        mesh = meshio.Mesh(pts3, [("triangle", np.asarray(triangles, dtype=np.int64))],
-                           point_data=data)
+        dim = points.shape[1]
+        data = {key: _three_components(np.asarray(value, dtype=float), dim)
+                for key, value in point_data.items()}
+        cells = np.asarray(cells, dtype=np.int64)
+        kind = {(2, 3): "triangle", (2, 4): "quad", (3, 4): "tetra"}[(dim, cells.shape[1])]
+        mesh = meshio.Mesh(_three_components(points, dim), [(kind, cells)], point_data=data)
 
         target = self.folder / name
         target.parent.mkdir(parents=True, exist_ok=True)

@@ -1,9 +1,11 @@
-"""Triangle meshes: generators, file readers, checks and the median dual."""
+"""Meshes: generators, file readers, checks, edges and boundary facets, the median dual."""
 
-from .trimesh import TriMesh, boundary_edges_of
-from .generators import rectangle, DIAGONAL_PATTERNS
+from .core import Mesh, renumber_for_locality, validate_and_orient
+from .edges import boundary_facets, unique_edges
+from .generators import DIAGONAL_PATTERNS, quads_to_triangles, rectangle, rectangle_quads
 from .reader import read_mesh
 from .dual import MedianDual, median_dual
 
-__all__ = ["TriMesh", "boundary_edges_of", "rectangle", "DIAGONAL_PATTERNS", "read_mesh",
-           "MedianDual", "median_dual"]
+__all__ = ["Mesh", "renumber_for_locality", "validate_and_orient", "boundary_facets",
+           "unique_edges", "DIAGONAL_PATTERNS", "quads_to_triangles", "rectangle",
+           "rectangle_quads", "read_mesh", "MedianDual", "median_dual"]

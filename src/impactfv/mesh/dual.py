@@ -1,15 +1,18 @@
-"""The median dual of a triangle mesh (numerics.md B.1, B.4, B.5).
+"""The median dual of a triangle mesh (docs/theory.md, "Space").
 
 For a triangle e with centroid X_e, the dual face of its edge ab is the segment from the edge
 midpoint to X_e; its area vector C_ab^e is that segment rotated so that C_ab^e . (X_b - X_a)
-> 0. C_ab sums the one or two triangles sharing ab. A boundary edge (a, b) of length L and
-outward normal N gives each end node a half-edge area vector C_gamma = (L/2) N. The dual
-area of a node is a third of the area of each triangle around it.
+> 0. C_ab sums the one or two triangles sharing ab. A boundary facet (an edge in 2D) with
+outward area vector S gives each of its d nodes the share C_gamma = S / d (2D: (L/2) N). The
+dual area of a node is a third of the area of each triangle around it.
 
 Closure: sum_b C_ab + sum_gamma C_gamma = 0 at every node. With the boundary value
-u_gamma = (5 u_a + u_b)/6 on the half-edge of node a, the Green-Gauss gradient
+u_gamma = (5 u_a + u_b)/6 on the half-edge of node a (3D: (6 u_a + u_b + u_c)/8 on a third
+of a triangle), the Green-Gauss gradient
 grad u_a = (1/Omega_a)[ sum_b (u_a + u_b)/2 (x) C_ab + sum_gamma u_gamma (x) C_gamma ] is exact
 for linear fields.
+
+The arrays are shaped by the dimension d; a tetrahedral dual (3D) fills the same fields.
 """
 
 from __future__ import annotations
@@ -18,17 +21,24 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .trimesh import boundary_edges_of, directed_edges, edge_keys, keys_to_edges
+from .edges import boundary_facets, directed_edges, edge_keys, keys_to_edges
+
+#: boundary closure (weight of the node itself, denominator), the others weigh 1
+CLOSURE = {2: (5.0, 6.0), 3: (6.0, 8.0)}
 
 
 @dataclass
 class MedianDual:
-    edges: np.ndarray            # (m,2) int, a < b, sorted by a then b
-    area_vectors: np.ndarray     # (m,2) C_ab, oriented from a to b
-    dual_areas: np.ndarray       # (n,) Omega_a
-    boundary_edges: np.ndarray   # (k,2) int, body on the left of a->b
-    boundary_normals: np.ndarray  # (k,2) C_gamma = (L/2) N, the same for both end nodes
+    edges: np.ndarray            # (m, 2) int, a < b, sorted by a then b
+    area_vectors: np.ndarray     # (m, d) C_ab, oriented from a to b
+    volumes: np.ndarray          # (n,) Omega_a (areas in 2D)
+    facets: np.ndarray           # (k, d) boundary facets, oriented outward
+    facet_vectors: np.ndarray    # (k, d) outward area vector S of each facet (2D: L N)
     node_length: np.ndarray      # (n,) shortest incident edge length (time step scale)
+
+    @property
+    def dim(self) -> int:
+        return self.area_vectors.shape[1]
 
 
 def median_dual(points: np.ndarray, triangles: np.ndarray) -> MedianDual:
@@ -49,32 +59,35 @@ def median_dual(points: np.ndarray, triangles: np.ndarray) -> MedianDual:
     p = points[triangles]
     tri_area = 0.5 * ((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                       - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
-    dual_areas = np.bincount(triangles.ravel(), np.repeat(tri_area / 3.0, 3), minlength=n)
+    volumes = np.bincount(triangles.ravel(), np.repeat(tri_area / 3.0, 3), minlength=n)
 
-    bnd = boundary_edges_of(triangles)
-    t = points[bnd[:, 1]] - points[bnd[:, 0]]
-    boundary_normals = 0.5 * np.column_stack([t[:, 1], -t[:, 0]])
+    facets = boundary_facets(triangles)
+    t = points[facets[:, 1]] - points[facets[:, 0]]
+    facet_vectors = np.column_stack([t[:, 1], -t[:, 0]])
 
     length = np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
     node_length = np.full(n, np.inf)
     np.minimum.at(node_length, edges[:, 0], length)
     np.minimum.at(node_length, edges[:, 1], length)
-    return MedianDual(edges.astype(np.int64), area_vectors, dual_areas, bnd.astype(np.int64),
-                      boundary_normals, node_length)
+    return MedianDual(edges.astype(np.int64), area_vectors, volumes, facets.astype(np.int64),
+                      facet_vectors, node_length)
 
 
 def green_gauss_gradient(dual: MedianDual, u: np.ndarray) -> np.ndarray:
-    """Nodal gradient (n, k, 2) of nodal values u (n, k) (reference implementation in numpy)."""
+    """Nodal gradient (n, k, d) of nodal values u (n, k) (reference implementation in numpy)."""
     u = np.asarray(u, dtype=float)
     if u.ndim == 1:
         u = u[:, None]
+    d = dual.dim
+    own, denominator = CLOSURE[d]
     a, b = dual.edges[:, 0], dual.edges[:, 1]
     flux = 0.5 * (u[a] + u[b])[:, :, None] * dual.area_vectors[:, None, :]
-    g = np.zeros(u.shape + (2,))
+    g = np.zeros(u.shape + (d,))
     np.add.at(g, a, flux)
     np.add.at(g, b, -flux)
-    ba, bb = dual.boundary_edges[:, 0], dual.boundary_edges[:, 1]
-    cg = dual.boundary_normals[:, None, :]
-    np.add.at(g, ba, ((5 * u[ba] + u[bb]) / 6)[:, :, None] * cg)
-    np.add.at(g, bb, ((5 * u[bb] + u[ba]) / 6)[:, :, None] * cg)
-    return g / dual.dual_areas[:, None, None]
+    share = (dual.facet_vectors / d)[:, None, :]
+    for k in range(d):
+        node = dual.facets[:, k]
+        others = sum(u[dual.facets[:, j]] for j in range(d) if j != k)
+        np.add.at(g, node, ((own * u[node] + others) / denominator)[:, :, None] * share)
+    return g / dual.volumes[:, None, None]

@@ -1,11 +1,12 @@
-"""Built-in structured triangulations of rectangles."""
+"""Built-in structured meshes of rectangles: triangles for the FV scheme, quadrilaterals for
+the mean-dilatation FE baseline (same grid, same nodes)."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import InputError
-from .trimesh import TriMesh
+from .core import Mesh
 
 #: "right": every cell cut along the diagonal (0,0)-(1,1); "left": along (1,0)-(0,1);
 #: "alternate": the two alternate in a checkerboard (no preferred direction);
@@ -13,7 +14,7 @@ from .trimesh import TriMesh
 DIAGONAL_PATTERNS = ("right", "left", "alternate", "crossed")
 
 
-def rectangle(origin, size, divisions, pattern: str = "alternate") -> TriMesh:
+def rectangle(origin, size, divisions, pattern: str = "alternate") -> Mesh:
     """Triangulate [x0, x0+Lx] x [y0, y0+Ly] with nx x ny cells.
 
     Boundary regions are named xmin, xmax, ymin, ymax.
@@ -57,4 +58,36 @@ def rectangle(origin, size, divisions, pattern: str = "alternate") -> TriMesh:
         "ymax": np.column_stack([top + 1, top]),
         "xmin": np.column_stack([left + nx + 1, left]),
     }
-    return TriMesh(points, tri.astype(np.int64), regions)
+    return Mesh(points, tri.astype(np.int64), regions)
+
+
+def rectangle_quads(origin, size, divisions):
+    """Bilinear quads of the grid of :func:`rectangle` (the same nodes in the same order),
+    counter-clockwise, with the same boundary regions."""
+    (x0, y0), (lx, ly), (nx, ny) = origin, size, divisions
+    base = rectangle(origin, size, divisions, "right")
+    nid = np.arange((nx + 1) * (ny + 1)).reshape(ny + 1, nx + 1)
+    quads = np.column_stack([nid[:-1, :-1].ravel(), nid[:-1, 1:].ravel(),
+                             nid[1:, 1:].ravel(), nid[1:, :-1].ravel()]).astype(np.int64)
+    return Mesh(base.points, quads, base.regions)
+
+
+def quads_to_triangles(quads, pattern="alternate"):
+    """Split each quad (a,b,c,d) into two counter-clockwise triangles (for plotting).
+
+    ``pattern="diagonal"`` always cuts along a-c; ``"alternate"`` alternates a-c / b-d from one
+    quad to the next.
+    """
+    q = np.asarray(quads, dtype=np.int64)
+    t1 = q[:, [0, 1, 2]]
+    t2 = q[:, [0, 2, 3]]
+    if pattern == "alternate":
+        flip = (np.arange(len(q)) % 2) == 1
+        t1 = np.where(flip[:, None], q[:, [0, 1, 3]], t1)
+        t2 = np.where(flip[:, None], q[:, [1, 2, 3]], t2)
+    elif pattern != "diagonal":
+        raise ValueError(f"unknown pattern {pattern!r}")
+    tris = np.empty((2 * len(q), 3), dtype=np.int64)
+    tris[0::2] = t1
+    tris[1::2] = t2
+    return tris

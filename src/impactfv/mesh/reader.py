@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .trimesh import TriMesh
+from .core import Mesh
 
 
-def read_mesh(path: str | Path) -> TriMesh:
+def read_mesh(path: str | Path) -> Mesh:
     """Read a 2D triangle mesh (gmsh .msh, or any format meshio knows).
 
     Line cells tagged with a physical group become boundary regions named after the group
@@ -70,4 +70,4 @@ def read_mesh(path: str | Path) -> TriMesh:
                 raise InputError(f"{path}: physical group {names.get(int(tag), tag)!r} has "
                                  "line nodes that belong to no triangle")
             regions[names.get(int(tag), f"group{int(tag)}")] = new_index[edges]
-    return TriMesh(points[used], new_index[tri], regions)
+    return Mesh(points[used], new_index[tri], regions)

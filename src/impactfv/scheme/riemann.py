@@ -1,60 +1,94 @@
-"""Acoustic Riemann solutions as small pure point functions (numerics.md B.3, B.4(b), E.2).
+"""Acoustic Riemann states of the p-F scheme as small point functions (docs/theory.md).
 
 Waves along a spatial unit normal n: pressure waves at +-c_p and shear waves at +-c_s, each
 carrying a jump [[t]] = -+ Z [[v]] with the impedance tensor
-Z = rho c_p n(x)n + rho c_s (I - n(x)n). Everything is 2D and written with scalars so that the
-same source compiles for any backend.
+Z = rho c_p n (x) n + rho c_s (I - n (x) n) (seed paper, eqs. 3-4). Vectors are small arrays
+of length d = 2 or 3; the functions write their results into arrays the caller provides and
+never allocate, so the same source compiles for any backend.
 """
 
-import math
+from ..tensors import cofactor_times, dot, normalise, solve
 
 
-def spatial_normal(f11, f12, f21, f22, n1, n2):
+def spatial_normal(F, N, n):
     """Unit spatial normal n = F^-T N / |F^-T N| (F^-T N is parallel to cof(F) N)."""
-    m1 = f22 * n1 - f21 * n2
-    m2 = -f12 * n1 + f11 * n2
-    s = math.sqrt(m1 * m1 + m2 * m2)
-    return m1 / s, m2 / s
+    cofactor_times(F, N, n)
+    normalise(n)
 
 
-def impedance_times(zp, zs, n1, n2, w1, w2):
-    """Z w with Z = zp n(x)n + zs (I - n(x)n)."""
-    wn = n1 * w1 + n2 * w2
-    return zs * w1 + (zp - zs) * wn * n1, zs * w2 + (zp - zs) * wn * n2
+def impedance_times(zp, zs, n, w, out):
+    """out = Z w with Z = zp n (x) n + zs (I - n (x) n)."""
+    wn = dot(n, w)
+    for i in range(n.shape[0]):
+        out[i] = zs * w[i] + (zp - zs) * wn * n[i]
 
 
-def interior_traction(tbar1, tbar2, dv1, dv2, zp, zs, n1, n2):
-    """Upwind traction between two states of one material: t = tbar + Z [[v]] / 2.
+def upwind_traction(tbar, dv, zp, zs, n, t):
+    """Interior momentum flux (seed eq. 9a): the traction t = tbar + Z [[v]] / 2 between two
+    states of one material, with tbar = (P_a + P_b) N / 2 and [[v]] = v_b^+ - v_a^- the jump of
+    the reconstructed velocities across the dual face (N from a to b). Written into t."""
+    impedance_times(zp, zs, n, dv, t)
+    for i in range(n.shape[0]):
+        t[i] = tbar[i] + 0.5 * t[i]
 
-    tbar is the average traction (P_a + P_b) N / 2 and [[v]] = v_b - v_a, N pointing a -> b.
-    """
-    z1, z2 = impedance_times(zp, zs, n1, n2, dv1, dv2)
-    return tbar1 + 0.5 * z1, tbar2 + 0.5 * z2
+
+def central_velocity(va, vb, v):
+    """Interior geometric flux (seed eq. 9b): the velocity v = (v_a + v_b) / 2 on the dual
+    face in the deformation-gradient equation."""
+    for i in range(va.shape[0]):
+        v[i] = 0.5 * (va[i] + vb[i])
 
 
-def boundary_state(v1, v2, t1, t2, zp, zs, n1, n2, fix1, fix2, vs1, vs2, ts1, ts2):
-    """State on a boundary face from the outgoing characteristic t^C - t = Z (v^C - v).
+def upwind_velocity(va, vb, dt, zp, zs, n, v):
+    """Upwind variant of the geometric flux: v = (v_a + v_b) / 2 + Z^-1 [[t]] / 2 with
+    [[t]] = t_b - t_a the jump of the tractions across the face."""
+    impedance_times(1.0 / zp, 1.0 / zs, n, dt, v)
+    for i in range(n.shape[0]):
+        v[i] = 0.5 * (va[i] + vb[i]) + 0.5 * v[i]
+
+
+def boundary_state(v, t, zp, zs, n, fixed, v_given, t_given, Z, rhs, vC, tC):
+    """Riemann state on a boundary face from the outgoing characteristic
+    t^C - t = Z (v^C - v) (docs/theory.md, "Boundaries").
 
     (v, t) is the interior state (t = P N, outward). Each Cartesian component i is either a
-    prescribed velocity (fix_i true, value vs_i) or a prescribed traction (value ts_i).
-    Returns (vC1, vC2, tC1, tC2).
+    prescribed velocity (fixed[i], value v_given[i]) or a prescribed traction (t_given[i]; zero
+    on a free surface). Writes v^C into vC and t^C into tC; Z and rhs are d x d and d scratch.
     """
-    za, zb = impedance_times(zp, zs, n1, n2, 1.0, 0.0)   # first column of Z
-    zc, zd = impedance_times(zp, zs, n1, n2, 0.0, 1.0)   # second column
-    # unknowns dv = vC - v and dt = tC - t with dt = Z dv; one of (dv_i, dt_i) known per i
-    if fix1 and fix2:
-        dv1, dv2 = vs1 - v1, vs2 - v2
-    elif fix1:
-        dv1 = vs1 - v1
-        dv2 = (ts2 - t2 - zb * dv1) / zd
-    elif fix2:
-        dv2 = vs2 - v2
-        dv1 = (ts1 - t1 - zc * dv2) / za
-    else:
-        det = za * zd - zb * zc
-        r1, r2 = ts1 - t1, ts2 - t2
-        dv1 = (zd * r1 - zc * r2) / det
-        dv2 = (-zb * r1 + za * r2) / det
-    dt1 = za * dv1 + zc * dv2
-    dt2 = zb * dv1 + zd * dv2
-    return v1 + dv1, v2 + dv2, t1 + dt1, t2 + dt2
+    d = n.shape[0]
+    # unknown dv = v^C - v with dt = Z dv; per component one of (dv_i, dt_i) is known
+    for i in range(d):
+        if fixed[i]:
+            for j in range(d):
+                Z[i, j] = 1.0 if i == j else 0.0
+            rhs[i] = v_given[i] - v[i]
+        else:
+            for j in range(d):
+                Z[i, j] = _impedance_entry(zp, zs, n, i, j)
+            rhs[i] = t_given[i] - t[i]
+    solve(Z, rhs, vC)
+    for i in range(d):
+        if fixed[i]:
+            vC[i] = v_given[i] - v[i]
+    for i in range(d):
+        s = 0.0
+        for j in range(d):
+            s += _impedance_entry(zp, zs, n, i, j) * vC[j]
+        tC[i] = t[i] + s
+    for i in range(d):
+        vC[i] += v[i]
+
+
+def _impedance_entry(zp, zs, n, i, j):
+    """Z_ij = zs delta_ij + (zp - zs) n_j n_i."""
+    return zs * (1.0 if i == j else 0.0) + (zp - zs) * n[j] * n[i]
+
+
+def nominal_traction(P, N, t):
+    """t = P N."""
+    d = N.shape[0]
+    for i in range(d):
+        s = 0.0
+        for J in range(d):
+            s += P[i, J] * N[J]
+        t[i] = s

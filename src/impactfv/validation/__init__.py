@@ -1,1 +1,1 @@
-"""Analytic solutions and ready-made validation cases (numerics.md H)."""
+"""Analytic solutions and ready-made validation cases (docs/validation.md)."""

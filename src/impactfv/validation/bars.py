@@ -1,4 +1,4 @@
-"""Bar impact cases with analytic 1D answers (numerics.md H.2, H.3; seed section 5)."""
+"""Bar impact cases with analytic 1D answers (docs/validation.md; seed paper, section 5)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ def two_bars(length=0.01, width=0.001, gap=4e-4, v0=50.0, divisions=(50, 5),
     if mats[0]["name"] == mats[1]["name"] and mats[0] != mats[1]:
         raise ValueError("two different materials need two names")
     unique = {m["name"]: m for m in mats}
-    c = min(Material(**m).p_wave_speed for m in mats)
+    c = min(Material.from_entry(m).p_wave_speed for m in mats)
     if end_time is None:
         end_time = gap / (2 * v0) + 1.3 * 2 * length / c
     side = [{"region": "ymin", "velocity": {"y": 0.0}},
@@ -51,7 +51,7 @@ def bar_on_wall(length=0.01, width=0.001, gap=2e-4, v0=50.0, divisions=(50, 5),
     """A bar moving at +v0 onto a rigid wall at x = 0 (roller sides)."""
     from ..materials import Material
 
-    c = Material(**material).p_wave_speed
+    c = Material.from_entry(material).p_wave_speed
     if end_time is None:
         end_time = gap / v0 + 1.3 * 2 * length / c
     return {

@@ -1,4 +1,5 @@
-"""The triangle mesh of one body, with named boundary regions, plus checks and renumbering."""
+"""The mesh of one body: reference points, cells and named boundary regions; checks and
+renumbering for locality."""
 
 from __future__ import annotations
 
@@ -9,37 +10,42 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import InputError
+from .edges import boundary_facets, directed_edges, edge_keys, unique_edges
 
 
 @dataclass
-class TriMesh:
-    """Reference points (n,2), counter-clockwise triangles (m,3), and boundary regions.
+class Mesh:
+    """Reference points (n, d) and cells (m, d + 1): counter-clockwise triangles in 2D.
 
-    ``regions`` maps a region name to its boundary edges (k,2), each oriented so that the body
-    lies on the left of a->b (outward normal (dy, -dx)/L).
+    ``regions`` maps a region name to its boundary facets (k, d), each oriented like the
+    boundary of its cell (2D: the body lies on the left of a->b, outward normal (dy, -dx)/L).
     """
 
     points: np.ndarray
-    triangles: np.ndarray
+    cells: np.ndarray
     regions: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n_nodes(self) -> int:
         return len(self.points)
 
+    @property
+    def dim(self) -> int:
+        return self.points.shape[1]
+
     def triangle_areas(self) -> np.ndarray:
-        p = self.points[self.triangles]
+        p = self.points[self.cells]
         d1 = p[:, 1] - p[:, 0]
         d2 = p[:, 2] - p[:, 0]
         return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
 
     def edge_lengths(self) -> np.ndarray:
-        e = unique_edges(self.triangles)
+        e = unique_edges(self.cells)
         return np.linalg.norm(self.points[e[:, 1]] - self.points[e[:, 0]], axis=1)
 
     def quality(self) -> dict:
         """Statistics a user wants before running: sizes, aspect ratios, smallest angles."""
-        p = self.points[self.triangles]
+        p = self.points[self.cells]
         lengths = np.stack([np.linalg.norm(p[:, (i + 1) % 3] - p[:, i], axis=1)
                             for i in range(3)], axis=1)
         area = np.abs(self.triangle_areas())
@@ -53,7 +59,7 @@ class TriMesh:
         min_angle = np.degrees(np.arccos(np.clip(np.max(cosines, axis=0), -1, 1)))
         edge_len = self.edge_lengths()
         return {
-            "nodes": int(self.n_nodes), "triangles": int(len(self.triangles)),
+            "nodes": int(self.n_nodes), "triangles": int(len(self.cells)),
             "area": float(area.sum()),
             "edge_length_min": float(edge_len.min()), "edge_length_max": float(edge_len.max()),
             "aspect_ratio_max": float(aspect.max()),
@@ -61,44 +67,14 @@ class TriMesh:
         }
 
 
-def directed_edges(triangles: np.ndarray) -> np.ndarray:
-    """The three edges of every triangle in its own orientation, (3m, 2)."""
-    return np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-
-
-def edge_keys(edges: np.ndarray) -> np.ndarray:
-    """One int64 per undirected edge (min * 2^32 + max): 1D unique/sort instead of row-wise
-    ``np.unique(axis=0)``, which is several times slower and needs more memory."""
-    lo = np.minimum(edges[:, 0], edges[:, 1]).astype(np.int64)
-    hi = np.maximum(edges[:, 0], edges[:, 1]).astype(np.int64)
-    return (lo << 32) | hi
-
-
-def keys_to_edges(keys: np.ndarray) -> np.ndarray:
-    return np.column_stack([keys >> 32, keys & 0xFFFFFFFF])
-
-
-def unique_edges(triangles: np.ndarray) -> np.ndarray:
-    """Undirected edges (a < b), sorted by a then b."""
-    return keys_to_edges(np.unique(edge_keys(directed_edges(triangles))))
-
-
-def boundary_edges_of(triangles: np.ndarray) -> np.ndarray:
-    """Edges used by one triangle only, oriented as in their (counter-clockwise) triangle."""
-    directed = directed_edges(triangles)
-    _, inverse, counts = np.unique(edge_keys(directed), return_inverse=True,
-                                   return_counts=True)
-    return directed[counts[inverse] == 1]
-
-
-def validate_and_orient(mesh: TriMesh, source: str) -> TriMesh:
+def validate_and_orient(mesh: Mesh, source: str) -> Mesh:
     """Check a mesh for the errors a user can make; orient triangles counter-clockwise.
 
     Raises InputError naming ``source`` for degenerate triangles, out-of-range or duplicated
     nodes, edges shared by more than two triangles, and empty regions.
     """
     pts = np.asarray(mesh.points, dtype=float)
-    tri = np.asarray(mesh.triangles)
+    tri = np.asarray(mesh.cells)
     if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3:
         raise InputError(f"{source}: expected at least 3 points with 2 coordinates")
     if not np.all(np.isfinite(pts)):
@@ -110,7 +86,7 @@ def validate_and_orient(mesh: TriMesh, source: str) -> TriMesh:
     tri = tri.astype(np.int64)
     if np.any(np.sort(tri, axis=1)[:, 1:] == np.sort(tri, axis=1)[:, :-1]):
         raise InputError(f"{source}: a triangle repeats a node")
-    mesh = TriMesh(pts, tri, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()})
+    mesh = Mesh(pts, tri, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()})
     area = mesh.triangle_areas()
     scale = np.median(mesh.edge_lengths()) ** 2
     bad = np.flatnonzero(np.abs(area) <= 1e-10 * scale)
@@ -134,9 +110,9 @@ def validate_and_orient(mesh: TriMesh, source: str) -> TriMesh:
     if same.any():
         raise InputError(f"{source}: {int(same.sum())} duplicated node(s) at the same "
                          "position (merge them so the triangles connect)")
-    mesh.triangles = tri
+    mesh.cells = tri
     # re-orient region edges like the boundary edges they are
-    boundary = boundary_edges_of(tri)
+    boundary = boundary_facets(tri)
     lookup = {(int(a), int(b)): True for a, b in boundary}
     for name, edges in mesh.regions.items():
         if len(edges) == 0:
@@ -154,19 +130,19 @@ def validate_and_orient(mesh: TriMesh, source: str) -> TriMesh:
     return mesh
 
 
-def renumber_for_locality(mesh: TriMesh) -> tuple[TriMesh, np.ndarray]:
-    """Reverse Cuthill-McKee node order, triangles sorted by their first node.
+def renumber_for_locality(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
+    """Reverse Cuthill-McKee node order, cells sorted by their first node.
 
     Returns the renumbered mesh and ``order`` with new_points = old_points[order].
     """
     n = mesh.n_nodes
-    e = unique_edges(mesh.triangles)
+    e = unique_edges(mesh.cells)
     graph = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
     graph = graph + graph.T
     order = np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=np.int64)
     new_index = np.empty(n, np.int64)
     new_index[order] = np.arange(n)
-    tri = new_index[mesh.triangles]
-    tri = tri[np.argsort(tri.min(axis=1), kind="stable")]
+    cells = new_index[mesh.cells]
+    cells = cells[np.argsort(cells.min(axis=1), kind="stable")]
     regions = {k: new_index[v] for k, v in mesh.regions.items()}
-    return TriMesh(mesh.points[order], tri, regions), order
+    return Mesh(mesh.points[order], cells, regions), order

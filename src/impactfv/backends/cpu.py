@@ -1,0 +1,105 @@
+"""The CPU backend: numba compilation of backend-free point functions, and small local arrays.
+
+Point functions (material laws, Riemann states, limiters) are plain Python on scalars and
+small arrays; they never allocate and read the dimension from the shapes of their arrays.
+Kernels, the loops around them, copy a node's or an edge's data into local arrays from
+:func:`local_vector` / :func:`local_matrix` and hand those to the point functions: they live
+on the stack, so LLVM keeps them in registers, and their shape is a compile-time constant, so
+the loops inside the point functions unroll (a heap array per block cost 25% in the flux
+loop; passing views of the global arrays, whose shapes are only known at run time, cost 40%
+in the stress loop; local copies cost 8-12% against hand-written 2D scalar code). A GPU
+backend would hand the same point functions ``cuda.local.array`` instead.
+
+Kernels are dimension-generic: they take ``dim``, a tuple of ``d`` zeros (see
+:func:`dim_tag`), and use ``len(dim)`` as the space dimension. The length of a tuple is part
+of its numba type, so each dimension gets its own compiled (and cached) specialisation in
+which ``d`` is a compile-time constant and the loops over components unroll; with ``d`` read
+from an array shape at run time the flux loop ran 2.4 times slower.
+"""
+
+import types
+
+from numba import carray, njit
+from numba import types as nbtypes
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+#: largest space dimension; local arrays are sized for it
+MAX_DIM = 3
+
+
+def dim_tag(dim: int) -> tuple:
+    """The ``dim`` argument of the kernels: a tuple of ``dim`` zeros."""
+    return (0,) * int(dim)
+
+
+_compiled = {}
+
+
+def point(f):
+    """The numba-compiled copy of point function ``f`` (compiled once, cached on disk).
+
+    A point function may call other point functions (of its own module or another impactfv
+    module); its copy gets a globals table in which those names refer to their compiled
+    copies, so the pure modules themselves are never touched.
+    """
+    if f in _compiled:
+        return _compiled[f]
+    table = dict(f.__globals__)
+    clone = types.FunctionType(f.__code__, table, f.__name__, f.__defaults__, f.__closure__)
+    clone.__module__ = f.__module__
+    clone.__qualname__ = f.__qualname__
+    compiled = _compiled[f] = njit(cache=True, inline="always")(clone)
+    for name in f.__code__.co_names:
+        g = table.get(name)
+        if isinstance(g, types.FunctionType) and g.__module__.startswith("impactfv."):
+            table[name] = point(g)
+    return compiled
+
+
+@intrinsic
+def _stack_buffer(typingctx, size):
+    """A float64 buffer of ``size`` (a literal int) entries on the stack of the caller."""
+    if not isinstance(size, nbtypes.IntegerLiteral):
+        return None
+    count = size.literal_value
+
+    def codegen(context, builder, signature, args):
+        return cgutils.alloca_once(builder, context.get_value_type(nbtypes.float64),
+                                   size=count)
+    return nbtypes.CPointer(nbtypes.float64)(size), codegen
+
+
+@njit(inline="always")
+def local_vector(d):
+    """A scratch vector of length d (d <= MAX_DIM) on the stack."""
+    return carray(_stack_buffer(3), d)
+
+
+@njit(inline="always")
+def local_matrix(d):
+    """A scratch d x d matrix (d <= MAX_DIM) on the stack."""
+    return carray(_stack_buffer(9), (d, d))
+
+
+@njit(inline="always")
+def load_vector(u, a, out):
+    """out = u[a] (out a local vector)."""
+    for i in range(out.shape[0]):
+        out[i] = u[a, i]
+
+
+@njit(inline="always")
+def load_matrix(F, a, out):
+    """out = F[a] (out a local matrix)."""
+    for i in range(out.shape[0]):
+        for J in range(out.shape[1]):
+            out[i, J] = F[a, i, J]
+
+
+@njit(inline="always")
+def store_matrix(out, F, a):
+    """F[a] = out (out a local matrix)."""
+    for i in range(out.shape[0]):
+        for J in range(out.shape[1]):
+            F[a, i, J] = out[i, J]

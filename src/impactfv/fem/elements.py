@@ -1,0 +1,206 @@
+"""Element kernels of the explicit FE baselines: internal forces (T3, mean-dilatation Q4),
+element stresses and their nodal averages.
+
+All kernels work on global (all-bodies concatenated) arrays:
+
+* ``x (N,2)`` current positions, ``v (N,2)`` velocities, ``minv (N,2)`` inverse lumped mass
+  per component (0 where the component is prescribed), ``mass (N,)`` lumped mass;
+* ``cells (M,k)`` element connectivity, k=3 (T3) or 4 (Q4), ``grads (M,ngp,k,2)`` reference
+  shape-function gradients at the integration points, ``wj (M,ngp)`` weight * reference
+  Jacobian, ``area0 (M,)`` reference element area, ``emat (M,)`` material row, ``mtab`` the
+  material table of :mod:`impactfv.materials`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .. import materials as M
+from ..backends.cpu import local_matrix, point
+
+_first_piola = point(M.first_piola)
+_energy = point(M.strain_energy_density)
+_pressure_and_von_mises = point(M.pressure_and_von_mises)
+CP = M.CP
+
+
+@njit(cache=True)
+def _shoelace(x, cells, e):
+    k = cells.shape[1]
+    a = 0.0
+    for i in range(k):
+        p = cells[e, i]
+        q = cells[e, (i + 1) % k]
+        a += x[p, 0] * x[q, 1] - x[q, 0] * x[p, 1]
+    return 0.5 * a
+
+
+@njit(cache=True)
+def _deformation_gradient(x, cells, grads, e, g):
+    f11 = 0.0
+    f12 = 0.0
+    f21 = 0.0
+    f22 = 0.0
+    for i in range(cells.shape[1]):
+        n = cells[e, i]
+        g1 = grads[e, g, i, 0]
+        g2 = grads[e, g, i, 1]
+        f11 += x[n, 0] * g1
+        f12 += x[n, 0] * g2
+        f21 += x[n, 1] * g1
+        f22 += x[n, 1] * g2
+    return f11, f12, f21, f22
+
+
+@njit(cache=True, inline="always")
+def _stress(f11, f12, f21, f22, props, Fm, P):
+    """P(F) of the material law, F given by components (copied into Fm)."""
+    Fm[0, 0] = f11
+    Fm[0, 1] = f12
+    Fm[1, 0] = f21
+    Fm[1, 1] = f22
+    _first_piola(Fm, props, P)
+    return P[0, 0], P[0, 1], P[1, 0], P[1, 1]
+
+
+@njit(cache=True)
+def internal_forces(x, cells, grads, wj, area0, emat, mtab, f):
+    """Assemble internal nodal forces ``f`` (= dE/dx, overwritten) of the whole mesh.
+
+    Returns ``(strain_energy, min_e(l_e / c_e), min J)`` where l_e is the current
+    characteristic length (2a/longest side for T3, a/longest side for Q4) and c_e the
+    reference p-wave speed of the element's material.
+    """
+    f[:, :] = 0.0
+    k = cells.shape[1]
+    ngp = grads.shape[1]
+    energy = 0.0
+    dtlim = np.inf
+    jmin = np.inf
+    Fm = local_matrix(2)
+    P = local_matrix(2)
+    for e in range(cells.shape[0]):
+        m = emat[e]
+        props = mtab[m]
+        a = _shoelace(x, cells, e)
+        jbar = a / area0[e]
+        if jbar < jmin:
+            jmin = jbar
+        # characteristic length for the stable time step
+        lmax = 0.0
+        for i in range(k):
+            p = cells[e, i]
+            q = cells[e, (i + 1) % k]
+            d = math.sqrt((x[q, 0] - x[p, 0]) ** 2 + (x[q, 1] - x[p, 1]) ** 2)
+            if d > lmax:
+                lmax = d
+        le = (2.0 * a / lmax) if k == 3 else (a / lmax)
+        r = le / mtab[m, CP]
+        if r < dtlim:
+            dtlim = r
+        if k == 3:
+            f11, f12, f21, f22 = _deformation_gradient(x, cells, grads, e, 0)
+            p11, p12, p21, p22 = _stress(f11, f12, f21, f22, props, Fm, P)
+            w = wj[e, 0]
+            energy += w * _energy(Fm, props)
+            for i in range(3):
+                n = cells[e, i]
+                g1 = grads[e, 0, i, 0]
+                g2 = grads[e, 0, i, 1]
+                f[n, 0] += w * (p11 * g1 + p12 * g2)
+                f[n, 1] += w * (p21 * g1 + p22 * g2)
+            continue
+        # ---- Q4 with mean dilatation (see impactfv.fem.stepper for the derivation)
+        coef = 0.0
+        for g in range(ngp):
+            f11, f12, f21, f22 = _deformation_gradient(x, cells, grads, e, g)
+            J = f11 * f22 - f12 * f21
+            if J < jmin:
+                jmin = J
+            s = math.sqrt(jbar / J)
+            b11 = s * f11
+            b12 = s * f12
+            b21 = s * f21
+            b22 = s * f22
+            p11, p12, p21, p22 = _stress(b11, b12, b21, b22, props, Fm, P)
+            w = wj[e, g]
+            energy += w * _energy(Fm, props)
+            pf = p11 * f11 + p12 * f12 + p21 * f21 + p22 * f22  # Pbar : F
+            ws = w * s
+            h = 0.5 * pf / J
+            # F^-T = cof F / J, cof F = [[F22, -F21], [-F12, F11]]
+            c11 = f22
+            c12 = -f21
+            c21 = -f12
+            c22 = f11
+            for i in range(4):
+                n = cells[e, i]
+                g1 = grads[e, g, i, 0]
+                g2 = grads[e, g, i, 1]
+                f[n, 0] += ws * (p11 * g1 + p12 * g2 - h * (c11 * g1 + c12 * g2))
+                f[n, 1] += ws * (p21 * g1 + p22 * g2 - h * (c21 * g1 + c22 * g2))
+            coef += ws * 0.5 * pf / jbar
+        coef /= area0[e]
+        for i in range(4):
+            n = cells[e, i]
+            nn = cells[e, (i + 1) % 4]
+            np_ = cells[e, (i + 3) % 4]
+            f[n, 0] += coef * 0.5 * (x[nn, 1] - x[np_, 1])
+            f[n, 1] += coef * 0.5 * (x[np_, 0] - x[nn, 0])
+    return energy, dtlim, jmin
+
+
+@njit(cache=True)
+def element_pressure_von_mises(x, cells, grads, wj, area0, emat, mtab, pe, vme):
+    """Element-average pressure (-tr sigma / 3, sigma_zz included) and von Mises stress.
+
+    Q4 uses the mean-dilatation F_bar at each Gauss point (so its pressure is the element one).
+    """
+    k = cells.shape[1]
+    ngp = grads.shape[1]
+    Fm = local_matrix(2)
+    sigma = local_matrix(2)
+    for e in range(cells.shape[0]):
+        props = mtab[emat[e]]
+        jbar = _shoelace(x, cells, e) / area0[e]
+        ps = 0.0
+        vs = 0.0
+        ws = 0.0
+        for g in range(ngp):
+            f11, f12, f21, f22 = _deformation_gradient(x, cells, grads, e, g)
+            if k == 4:
+                s = math.sqrt(jbar / (f11 * f22 - f12 * f21))
+                f11 *= s
+                f12 *= s
+                f21 *= s
+                f22 *= s
+            Fm[0, 0] = f11
+            Fm[0, 1] = f12
+            Fm[1, 0] = f21
+            Fm[1, 1] = f22
+            p, vm = _pressure_and_von_mises(Fm, props, sigma)
+            w = wj[e, g]
+            ps += w * p
+            vs += w * vm
+            ws += w
+        pe[e] = ps / ws
+        vme[e] = vs / ws
+
+
+@njit(cache=True)
+def nodal_average(cells, area0, ve, nnodes):
+    """Reference-area-weighted nodal average of an element field."""
+    acc = np.zeros(nnodes)
+    wsum = np.zeros(nnodes)
+    for e in range(cells.shape[0]):
+        for i in range(cells.shape[1]):
+            n = cells[e, i]
+            acc[n] += area0[e] * ve[e]
+            wsum[n] += area0[e]
+    for n in range(nnodes):
+        if wsum[n] > 0.0:
+            acc[n] /= wsum[n]
+    return acc

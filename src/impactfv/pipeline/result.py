@@ -1,0 +1,29 @@
+"""What a run returns, and how an interrupted run ends."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+
+@dataclass
+class RunResult:
+    """``history`` (column -> values per step), ``bodies`` (name -> point fields and mesh at
+    the end), ``summary`` (as in summary.json), the output folder and its snapshots."""
+
+    history: dict[str, np.ndarray]
+    bodies: dict[str, dict[str, np.ndarray]]
+    summary: dict
+    output_dir: Path | None = None
+    snapshots: list = field(default_factory=list)
+
+
+class Interrupted(Exception):
+    """The run was stopped by a signal after writing a checkpoint; CLI exit 128 + signum."""
+
+    def __init__(self, signum, checkpoint):
+        super().__init__(f"interrupted by signal {signum}; checkpoint written to {checkpoint}")
+        self.signum = signum
+        self.checkpoint = checkpoint

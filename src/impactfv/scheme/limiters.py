@@ -1,0 +1,35 @@
+"""Slope limiters of the linear reconstruction, as point functions (docs/theory.md,
+"Reconstruction and limiter").
+
+For a node a and one component u: d = grad(u)_a . (X_mid - X_a) is the change the
+reconstruction makes at an edge midpoint, and dmax the room to the largest (d > 0) or
+smallest (d < 0) value among a and its neighbours. Each returns the factor phi <= 1 that
+keeps u_a + phi d within that range; the node takes the smallest phi over its edges.
+"""
+
+NONE = 0
+BARTH_JESPERSEN = 1
+VENKATAKRISHNAN = 2
+IDS = {"none": NONE, "barth_jespersen": BARTH_JESPERSEN, "venkatakrishnan": VENKATAKRISHNAN}
+
+
+def barth_jespersen(dmax, d):
+    """phi = min(1, dmax / d): the largest factor that creates no new extremum."""
+    return min(1.0, dmax / d)
+
+
+def venkatakrishnan(dmax, d, eps2):
+    """A smooth version of Barth-Jespersen that leaves smooth extrema almost untouched;
+    eps2 sets the size below which changes are not limited."""
+    num = (dmax * dmax + eps2) * d + 2.0 * d * d * dmax
+    den = dmax * dmax + 2.0 * d * d + d * dmax + eps2
+    return num / (den * d)
+
+
+def limiter_factor(kind, u, umin, umax, d):
+    """phi for a reconstruction change d of a value u with neighbour range [umin, umax]."""
+    dmax = umax - u if d > 0.0 else umin - u
+    if kind == BARTH_JESPERSEN:
+        return barth_jespersen(dmax, d)
+    # eps^2 = 0.027 (umax - umin)^2, i.e. K = 0.3 relative to the local range
+    return venkatakrishnan(dmax, d, 0.027 * (umax - umin) * (umax - umin))
