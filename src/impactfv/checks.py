@@ -45,7 +45,7 @@ def check_report(case: Case) -> str:
                  f"({nbytes / disc.n_nodes:.0f} bytes per node, {disc.n_nodes} nodes, "
                  f"{disc.n_edges} edges)")
     if case.contacts:
-        from .geometry.overlap import find_overlaps
+        from .geometry.penetration import find_overlaps
         for k, c in enumerate(case.contacts):
             partner = "a rigid wall" if c.wall is not None else repr(c.bodies[1])
             lines.append(f"contact[{k}]: {c.bodies[0]!r} with {partner}, model {c.model}")

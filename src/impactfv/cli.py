@@ -10,7 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from . import __version__
+from .version import __version__
 from .errors import InputError, SimulationError
 from .pipeline import Interrupted
 

@@ -98,7 +98,8 @@ def _squared_norm_3d(F):
 
 
 def first_piola(F, props, P):
-    """First Piola-Kirchhoff stress P(F), written into P (d x d)."""
+    """First Piola-Kirchhoff stress P(F) of the momentum equation (seed eq. 1a), written
+    into P (d x d)."""
     d = F.shape[0]
     mu = props[MU]
     if int(props[LAW]) == LINEAR_ELASTIC:
@@ -127,7 +128,8 @@ def _linear_stress(F, i, J, tr, lam, mu):
 
 
 def strain_energy_density(F, props):
-    """Stored energy per unit reference volume W(F)."""
+    """Stored energy per unit reference volume W(F), whose derivative is the P of seed
+    eq. 1a."""
     d = F.shape[0]
     mu = props[MU]
     if int(props[LAW]) == LINEAR_ELASTIC:

@@ -82,7 +82,7 @@ def contact_state(vA, tA, vB, tB, n, zpA, zsA, zpB, zsB, stick, vtA, ttA, vtB, t
 
 def wall_state(vA, tA, n, zpA, zsA, wall_velocity, stick, vt, tt, vstar, tstar):
     """Body A against a rigid wall moving with ``wall_velocity``, n pointing into the wall:
-    the limit Z_B -> infinity of contact_state. The wall imposes its normal velocity (and in
+    the limit Z_B -> infinity of the contact state of seed eq. 7. The wall imposes its normal velocity (and in
     stick its tangential velocity). Writes vstar and tstar; returns t*_n."""
     vnA = dot(vA, n)
     tnA = dot(tA, n)

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from ..version import __version__
 from ..case import Case
 from ..errors import InputError, SimulationError
 from ..io.checkpoint import case_fingerprint, load_newest_checkpoint, save_checkpoint
@@ -55,7 +55,7 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     ``handle_signals``: on SIGINT/SIGTERM write a checkpoint and valid outputs, then raise
     :class:`Interrupted` (the CLI turns it into exit code 130 or 143).
     """
-    from ..geometry.overlap import find_overlaps
+    from ..geometry.penetration import find_overlaps
     from .methods import make_stepper
 
     overlaps = find_overlaps(case) if case.contacts else []

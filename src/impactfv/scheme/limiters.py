@@ -14,13 +14,14 @@ IDS = {"none": NONE, "barth_jespersen": BARTH_JESPERSEN, "venkatakrishnan": VENK
 
 
 def barth_jespersen(dmax, d):
-    """phi = min(1, dmax / d): the largest factor that creates no new extremum."""
+    """phi = min(1, dmax / d): the largest factor that creates no new extremum (the TVD
+    shock capturing of the seed's abstract)."""
     return min(1.0, dmax / d)
 
 
 def venkatakrishnan(dmax, d, eps2):
-    """A smooth version of Barth-Jespersen that leaves smooth extrema almost untouched;
-    eps2 sets the size below which changes are not limited."""
+    """A smooth version of Barth-Jespersen (TVD shock capturing, seed abstract) that leaves
+    smooth extrema almost untouched; eps2 sets the size below which changes are not limited."""
     num = (dmax * dmax + eps2) * d + 2.0 * d * d * dmax
     den = dmax * dmax + 2.0 * d * d + d * dmax + eps2
     return num / (den * d)

@@ -11,13 +11,15 @@ from ..tensors import cofactor_times, dot, normalise, solve
 
 
 def spatial_normal(F, N, n):
-    """Unit spatial normal n = F^-T N / |F^-T N| (F^-T N is parallel to cof(F) N)."""
+    """Unit spatial normal n = F^-T N / |F^-T N| of a dual face (seed eq. 9a); F^-T N is
+    parallel to cof(F) N."""
     cofactor_times(F, N, n)
     normalise(n)
 
 
 def impedance_times(zp, zs, n, w, out):
-    """out = Z w with Z = zp n (x) n + zs (I - n (x) n)."""
+    """out = Z w with the impedance tensor Z = zp n (x) n + zs (I - n (x) n): the ratio of
+    the traction jump to the velocity jump across an acoustic wave (seed eqs. 3-4)."""
     wn = dot(n, w)
     for i in range(n.shape[0]):
         out[i] = zs * w[i] + (zp - zs) * wn * n[i]
@@ -40,7 +42,7 @@ def central_velocity(va, vb, v):
 
 
 def upwind_velocity(va, vb, dt, zp, zs, n, v):
-    """Upwind variant of the geometric flux: v = (v_a + v_b) / 2 + Z^-1 [[t]] / 2 with
+    """Upwind variant of the geometric flux of seed eq. 9b: v = (v_a + v_b) / 2 + Z^-1 [[t]] / 2 with
     [[t]] = t_b - t_a the jump of the tractions across the face."""
     impedance_times(1.0 / zp, 1.0 / zs, n, dt, v)
     for i in range(n.shape[0]):
@@ -48,8 +50,8 @@ def upwind_velocity(va, vb, dt, zp, zs, n, v):
 
 
 def boundary_state(v, t, zp, zs, n, fixed, v_given, t_given, Z, rhs, vC, tC):
-    """Riemann state on a boundary face from the outgoing characteristic
-    t^C - t = Z (v^C - v) (docs/theory.md, "Boundaries").
+    """Riemann state on a boundary face, the boundary terms of seed eqs. 9a-9b, from the
+    outgoing characteristic t^C - t = Z (v^C - v) (docs/theory.md, "Boundaries").
 
     (v, t) is the interior state (t = P N, outward). Each Cartesian component i is either a
     prescribed velocity (fixed[i], value v_given[i]) or a prescribed traction (t_given[i]; zero

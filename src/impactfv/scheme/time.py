@@ -10,5 +10,6 @@ STAGES = (0.0, 0.5)
 
 
 def rk_stage(alpha, u0, u, dt, rate):
-    """alpha u0 + (1 - alpha) (u + dt rate): one stage of the TVD Runge-Kutta scheme."""
+    """alpha u0 + (1 - alpha) (u + dt rate): one stage of the explicit TVD Runge-Kutta
+    integrator (seed section 4)."""
     return alpha * u0 + (1.0 - alpha) * (u + dt * rate)
