@@ -22,6 +22,12 @@ SOFT = {"name": "soft", "model": "neo_hookean", "density": 1000.0, "youngs_modul
         "poisson_ratio": 0.3}
 
 
+def material_toml(entry=None) -> str:
+    """The ``[[material]]`` table of a material entry (seed copper by default), as TOML."""
+    entry = entry or COPPER
+    return "[[material]]\n" + "".join(f"{k} = {v!r}\n" for k, v in entry.items()).replace("'", '"')
+
+
 def material(entry) -> Material:
     return Material.from_entry(entry)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import meshio
 import numpy as np
 import pytest
-from conftest import run_cli
+from conftest import material_toml, run_cli
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -18,13 +18,7 @@ title = "cli test"
 end_time = 2.0e-6
 output_interval = 1.0e-6
 
-[[material]]
-name = "copper"
-model = "neo_hookean"
-density = 8930.0
-youngs_modulus = 585.0e6
-poisson_ratio = 0.495
-
+""" + material_toml() + """
 [[body]]
 name = "bar"
 material = "copper"

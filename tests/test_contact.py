@@ -3,7 +3,7 @@ different impedance (seed eq. 5), stick against slip, symmetry and start-up chec
 
 import numpy as np
 import pytest
-from conftest import COPPER, run_cli
+from conftest import COPPER, material_toml, run_cli
 
 from impactfv import InputError, load_case, run
 from impactfv.contact.laws import contact_state, releases, wall_state
@@ -196,12 +196,7 @@ def test_check_reports_overlap_and_run_exits_2(tmp_path):
     text = """
 [run]
 end_time = 1e-6
-[[material]]
-name = "copper"
-density = 8930.0
-youngs_modulus = 585.0e6
-poisson_ratio = 0.495
-[[body]]
+""" + material_toml() + """[[body]]
 name = "a"
 material = "copper"
 mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.002, 0.001], divisions = [4, 2] }

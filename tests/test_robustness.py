@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import run_cli
+from conftest import material_toml, run_cli
 
 from impactfv import InputError, SimulationError, load_case, run
 from impactfv.mesh.core import Mesh, validate_and_orient
@@ -42,12 +42,7 @@ BARS = """
 [run]
 end_time = 1.6e-5
 output_interval = 2.0e-6
-[[material]]
-name = "copper"
-density = 8930.0
-youngs_modulus = 585.0e6
-poisson_ratio = 0.495
-[[body]]
+""" + material_toml() + """[[body]]
 name = "left"
 material = "copper"
 velocity = [50.0, 0.0]

@@ -115,7 +115,8 @@ class FVStepper:
             return
         m = self.disc
         body = m.bodies[m.body_of_node[bad]]
-        J = float(np.linalg.det(self.F[bad]))
+        with np.errstate(invalid="ignore"):
+            J = float(np.linalg.det(self.F[bad]))
         what = "non-finite state" if not np.isfinite(J) or not np.all(
             np.isfinite(self.v[bad])) else f"collapsed control volume (J = {J:.3g})"
         raise SimulationError(
