@@ -43,7 +43,7 @@ import sys
 import time
 
 DEFAULT_SIZES = "10k,25k,100k,250k,1M"
-KERNELS_IN_STEP = ("compute_stress", "velocity_gradient", "limit_gradient", "assemble_rates",
+KERNELS_IN_STEP = ("compute_stress", "gradient", "limit_gradient", "assemble_rates",
                    "rk_update")
 KERNELS_PER_STEP = ("stable_time_step", "state_is_bad", "monitors")
 
@@ -354,7 +354,7 @@ def report(results: list[dict], info: dict) -> str:
     names.sort(key=lambda k: order_key.get(k, len(order_key)))
     in_step = [k for k in names if k not in KERNELS_PER_STEP]
     outside = [k for k in names if k in KERNELS_PER_STEP]
-    short = {"compute_stress": "stress", "velocity_gradient": "vel_grad",
+    short = {"compute_stress": "stress", "gradient": "vel_grad",
              "limit_gradient": "limiter", "assemble_rates": "assemble", "rk_update": "rk_upd",
              "stable_time_step": "stable_dt", "state_is_bad": "check", "monitors": "monitors"}
     out.append("Breakdown, ms per step (% of the run-loop step = step + stable_dt + check + "

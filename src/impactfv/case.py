@@ -37,7 +37,7 @@ class RunSettings(_Strict):
     order: Literal[1, 2] = 2
     limiter: Literal["none", "barth_jespersen", "venkatakrishnan"] = "barth_jespersen"
     method: Literal["fv", "fem-t3", "fem-q4md"] = "fv"
-    geometric_flux: Literal["central", "upwind"] = "central"
+    geometric_flux: Literal["central", "upwind"] = "upwind"
     max_steps: int = Field(10_000_000, gt=0, description="safety cap on the number of steps")
 
     @field_validator("end_time", "cfl", "output_interval")

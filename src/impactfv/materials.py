@@ -87,6 +87,12 @@ class Material:
 
 # --------------------------------------------------------------------------- point functions
 
+def small_strain(props):
+    """True for laws posed in the reference configuration (linear elastic: P = sigma(eps)),
+    whose faces keep their reference normal and area."""
+    return int(props[LAW]) == LINEAR_ELASTIC
+
+
 def _squared_norm_3d(F):
     """F3:F3 of the 3D deformation gradient (plane strain adds the out-of-plane 1)."""
     d = F.shape[0]

@@ -83,6 +83,12 @@ def local_matrix(d):
 
 
 @njit(inline="always")
+def local_rows(k, d):
+    """k scratch vectors of length d (k d <= 48) on the stack, as the rows of one array."""
+    return carray(_stack_buffer(48), (k, d))
+
+
+@njit(inline="always")
 def load_vector(u, a, out):
     """out = u[a] (out a local vector)."""
     for i in range(out.shape[0]):

@@ -17,19 +17,21 @@ import numpy as np
 from numba import njit, prange
 
 from .. import materials as M
-from ..backends.cpu import (load_matrix, load_vector, local_matrix, local_vector, point,
-                            store_matrix)
+from ..backends.cpu import (load_matrix, load_vector, local_matrix, local_rows, local_vector,
+                            point, store_matrix)
 from ..tensors import determinant as _determinant
 from . import limiters as L
 from . import riemann as R
 from . import time as T
 
-first_piola = point(M.first_piola)
+cauchy_stress = point(M.cauchy_stress)
 strain_energy_density = point(M.strain_energy_density)
 pressure_and_von_mises = point(M.pressure_and_von_mises)
 min_stretch = point(M.min_stretch)
 determinant = point(_determinant)
 spatial_normal = point(R.spatial_normal)
+face_geometry = point(R.face_geometry)
+face_traction = point(R.face_traction)
 upwind_traction = point(R.upwind_traction)
 central_velocity = point(R.central_velocity)
 upwind_velocity = point(R.upwind_velocity)
@@ -41,22 +43,40 @@ RHO, CP, CS = M.RHO, M.CP, M.CS
 
 
 @njit(cache=True, parallel=True)
-def compute_stress(F, node_material, table, P, dim):
-    """P_a = P(F_a) at every node (the material law)."""
+def compute_stress(F, node_material, table, sigma, dim):
+    """Cauchy stress sigma_a = sigma(F_a) at every node (the material law)."""
     d = len(dim)
     for a in prange(F.shape[0]):
         Fa = local_matrix(d)
-        Pa = local_matrix(d)
+        sa = local_matrix(d)
         load_matrix(F, a, Fa)
-        first_piola(Fa, table[node_material[a]], Pa)
-        store_matrix(Pa, P, a)
+        cauchy_stress(Fa, table[node_material[a]], sa)
+        store_matrix(sa, sigma, a)
 
 
 @njit(cache=True, inline="always")
-def _gradient_edge(e, v, edges, C, grad, vmin, vmax, d):
+def symmetric_index(i, j, d):
+    """Position of sigma_ij (i <= j) among the d (d + 1) / 2 independent components."""
+    return i * d - i * (i - 1) // 2 + (j - i)
+
+
+@njit(cache=True, parallel=True)
+def pack_velocity_and_stress(v, sigma, U, dim):
+    """U[a] = (v_a, the independent components of sigma_a): the fields reconstructed to the
+    faces."""
+    d = len(dim)
+    for a in prange(v.shape[0]):
+        for i in range(d):
+            U[a, i] = v[a, i]
+            for j in range(i, d):
+                U[a, d + symmetric_index(i, j, d)] = sigma[a, i, j]
+
+
+@njit(cache=True, inline="always")
+def _gradient_edge(e, v, edges, C, grad, vmin, vmax, d, m):
     a = edges[e, 0]
     b = edges[e, 1]
-    for i in range(d):
+    for i in range(m):
         u = 0.5 * (v[a, i] + v[b, i])
         for J in range(d):
             grad[a, i, J] += u * C[e, J]
@@ -73,15 +93,18 @@ def _gradient_edge(e, v, edges, C, grad, vmin, vmax, d):
 
 
 @njit(cache=True, parallel=True)
-def velocity_gradient(v, edges, C, edge_offsets, bface_node, bface_others, bface_C, closure,
-                      volume, grad, vmin, vmax, dim):
-    """Green-Gauss nodal gradient grad[a, i, J] = d v_i / d X_J (exact for linear fields), and
-    the range [vmin, vmax] of each component over the node and its neighbours."""
+def gradient(v, edges, C, edge_offsets, bface_node, bface_others, bface_C, closure,
+             volume, grad, vmin, vmax, dim, components):
+    """Green-Gauss nodal gradient grad[a, i, J] = d v_i / d X_J (exact for linear fields) of
+    every component i of the nodal field v (n, m), and the range [vmin, vmax] of each
+    component over the node and its neighbours. ``components`` is a tuple of m zeros (a
+    compile-time m, like ``dim``)."""
     d = len(dim)
+    m = len(components)
     own, denominator = closure
     n = v.shape[0]
     for a in prange(n):
-        for i in range(d):
+        for i in range(m):
             vmin[a, i] = v[a, i]
             vmax[a, i] = v[a, i]
             for J in range(d):
@@ -89,12 +112,12 @@ def velocity_gradient(v, edges, C, edge_offsets, bface_node, bface_others, bface
     nb = edge_offsets.shape[0] - 2
     for k in prange(nb):
         for e in range(edge_offsets[k], edge_offsets[k + 1]):
-            _gradient_edge(e, v, edges, C, grad, vmin, vmax, d)
+            _gradient_edge(e, v, edges, C, grad, vmin, vmax, d, m)
     for e in range(edge_offsets[nb], edge_offsets[nb + 1]):
-        _gradient_edge(e, v, edges, C, grad, vmin, vmax, d)
+        _gradient_edge(e, v, edges, C, grad, vmin, vmax, d, m)
     for h in range(bface_node.shape[0]):
         a = bface_node[h]
-        for i in range(d):
+        for i in range(m):
             u = own * v[a, i]
             for o in bface_others[h]:
                 u += v[o, i]
@@ -103,17 +126,17 @@ def velocity_gradient(v, edges, C, edge_offsets, bface_node, bface_others, bface
                 grad[a, i, J] += u * bface_C[h, J]
     for a in prange(n):
         inv = 1.0 / volume[a]
-        for i in range(d):
+        for i in range(m):
             for J in range(d):
                 grad[a, i, J] *= inv
 
 
 @njit(cache=True, inline="always")
-def _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d):
+def _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d, m):
     for side in range(2):
         a = edges[e, side]
         sgn = 1.0 if side == 0 else -1.0
-        for i in range(d):
+        for i in range(m):
             change = 0.0
             for J in range(d):
                 change += grad[a, i, J] * half[e, J]
@@ -128,31 +151,59 @@ def _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d):
 
 
 @njit(cache=True, parallel=True)
-def limit_gradient(v, edges, half, edge_offsets, kind, vmin, vmax, phi, grad, dim):
+def limit_gradient(v, edges, half, edge_offsets, kind, vmin, vmax, phi, grad, dim,
+                   components):
     """Scale each component's gradient by the smallest limiter factor over the node's edges,
     so that the reconstructed midpoint values stay within the neighbours' range."""
     d = len(dim)
+    m = len(components)
     n = v.shape[0]
     for a in prange(n):
-        for i in range(d):
+        for i in range(m):
             phi[a, i] = 1.0
     nb = edge_offsets.shape[0] - 2
     for k in prange(nb):
         for e in range(edge_offsets[k], edge_offsets[k + 1]):
-            _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d)
+            _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d, m)
     for e in range(edge_offsets[nb], edge_offsets[nb + 1]):
-        _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d)
+        _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d, m)
     for a in prange(n):
-        for i in range(d):
+        for i in range(m):
             for J in range(d):
                 grad[a, i, J] *= phi[a, i]
 
 
 @njit(cache=True, inline="always")
-def _flux_edge(e, v, F, P, grad, node_material, table, edges, C, C_len, half,
-               use_reconstruction, upwind_geometric, force, dF, d, Fe, N, n, va, vb, w, tbar, t,
-               u):
-    """Upwind traction (9a) and geometric velocity (9b) of interior edge e."""
+def _reconstruct_stress(sigma, grad, a, sign, e, half, stress_reconstructed, S, d):
+    """S = sigma_a, reconstructed to the midpoint of edge e (sign +1 from its first node,
+    -1 from its second) when the stress is reconstructed."""
+    for i in range(d):
+        for j in range(i, d):
+            s = sigma[a, i, j]
+            if stress_reconstructed:
+                row = d + symmetric_index(i, j, d)
+                r = 0.0
+                for K in range(d):
+                    r += grad[a, row, K] * half[e, K]
+                s += sign * r
+            S[i, j] = s
+            S[j, i] = s
+
+
+@njit(cache=True, inline="always")
+def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+               use_reconstruction, stress_reconstructed, upwind_geometric, force, dF, d, Fe,
+               Sa, Sb, work):
+    """Upwind traction (seed eq. 9a) and geometric velocity (9b) of interior edge e.
+
+    Both sides' tractions are sigma n da/dA with the face's own normal n and area ratio
+    (from the mean F of the edge), so a rigid rotation of a stressed state makes no traction
+    jump. With ``use_reconstruction`` the velocities are reconstructed linearly to the edge
+    midpoint from each side (grad rows 0..d-1); with ``stress_reconstructed`` the stresses as
+    well (grad rows d..: the independent components of sigma).
+    """
+    N, n, va, vb, w, ta, tb = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
+    tbar, tjump, t, u = work[7], work[8], work[9], work[10]
     a = edges[e, 0]
     b = edges[e, 1]
     props = table[node_material[a]]
@@ -163,14 +214,14 @@ def _flux_edge(e, v, F, P, grad, node_material, table, edges, C, C_len, half,
         N[i] = C[e, i] / ln
         for J in range(d):
             Fe[i, J] = 0.5 * (F[a, i, J] + F[b, i, J])
-    spatial_normal(Fe, N, n)
+    area = face_geometry(Fe, N, props, n)
     load_vector(v, a, va)
     load_vector(v, b, vb)
     if not upwind_geometric:
-        # central: keeps F the gradient of x (compatibility)
+        # central (seed eq. 9b as written): keeps F the gradient of x at interior nodes
         central_velocity(va, vb, u)
-    for i in range(d):
-        if use_reconstruction:
+    if use_reconstruction:
+        for i in range(d):
             ra = 0.0
             rb = 0.0
             for J in range(d):
@@ -178,23 +229,20 @@ def _flux_edge(e, v, F, P, grad, node_material, table, edges, C, C_len, half,
                 rb += grad[b, i, J] * half[e, J]
             va[i] += ra
             vb[i] -= rb
+    _reconstruct_stress(sigma, grad, a, 1.0, e, half, stress_reconstructed, Sa, d)
+    _reconstruct_stress(sigma, grad, b, -1.0, e, half, stress_reconstructed, Sb, d)
+    face_traction(Sa, n, area, ta)
+    face_traction(Sb, n, area, tb)
+    for i in range(d):
         w[i] = vb[i] - va[i]
-        s = 0.0
-        for J in range(d):
-            s += (P[a, i, J] + P[b, i, J]) * N[J]
-        tbar[i] = 0.5 * s
+        tbar[i] = 0.5 * (ta[i] + tb[i])
+        tjump[i] = tb[i] - ta[i]
     upwind_traction(tbar, w, zp, zs, n, t)
     for i in range(d):
         force[a, i] += t[i] * ln
         force[b, i] -= t[i] * ln
     if upwind_geometric:
-        # [[t]] from the nodal (unreconstructed) stresses
-        for i in range(d):
-            s = 0.0
-            for J in range(d):
-                s += (P[b, i, J] - P[a, i, J]) * N[J]
-            w[i] = s
-        upwind_velocity(va, vb, w, zp, zs, n, u)
+        upwind_velocity(va, vb, tjump, zp, u)
     for i in range(d):
         for J in range(d):
             dF[a, i, J] += u[i] * C[e, J]
@@ -202,28 +250,24 @@ def _flux_edge(e, v, F, P, grad, node_material, table, edges, C, C_len, half,
 
 
 @njit(cache=True, inline="always")
-def _interior_fluxes(k, v, F, P, grad, node_material, table, edges, C, C_len, half,
-                     edge_offsets, use_reconstruction, upwind_geometric, force, dF, d):
+def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                     edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
+                     force, dF, d):
     Fe = local_matrix(d)
-    N = local_vector(d)
-    n = local_vector(d)
-    va = local_vector(d)
-    vb = local_vector(d)
-    w = local_vector(d)
-    tbar = local_vector(d)
-    t = local_vector(d)
-    u = local_vector(d)
+    Sa = local_matrix(d)
+    Sb = local_matrix(d)
+    work = local_rows(11, d)
     for e in range(edge_offsets[k], edge_offsets[k + 1]):
-        _flux_edge(e, v, F, P, grad, node_material, table, edges, C, C_len, half,
-                   use_reconstruction, upwind_geometric, force, dF, d, Fe, N, n, va, vb, w,
-                   tbar, t, u)
+        _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                   use_reconstruction, stress_reconstructed, upwind_geometric, force, dF, d, Fe,
+                   Sa, Sb, work)
 
 
 @njit(cache=True, parallel=True)
-def assemble_rates(v, F, P, grad, node_material, table, edges, C, C_len, half, edge_offsets,
-                   bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
-                   bc_velocity, bc_traction, use_reconstruction, upwind_geometric,
-                   bface_in_contact, force, dF, dim):
+def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                   edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
+                   bc_velocity, bc_traction, fixed_mask, fixed_value, use_reconstruction,
+                   stress_reconstructed, upwind_geometric, bface_in_contact, force, dF, dim):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt.
 
     Dual boundary faces whose node is in contact are left to the contact module.
@@ -237,11 +281,14 @@ def assemble_rates(v, F, P, grad, node_material, table, edges, C, C_len, half, e
                 dF[a, i, J] = 0.0
     nb = edge_offsets.shape[0] - 2
     for k in prange(nb):
-        _interior_fluxes(k, v, F, P, grad, node_material, table, edges, C, C_len, half,
-                         edge_offsets, use_reconstruction, upwind_geometric, force, dF, d)
-    _interior_fluxes(nb, v, F, P, grad, node_material, table, edges, C, C_len, half,
-                     edge_offsets, use_reconstruction, upwind_geometric, force, dF, d)
+        _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                         edge_offsets, use_reconstruction, stress_reconstructed,
+                         upwind_geometric, force, dF, d)
+    _interior_fluxes(nb, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                     edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
+                     force, dF, d)
     Fi = local_matrix(d)
+    Si = local_matrix(d)
     Z = local_matrix(d)
     N = local_vector(d)
     n = local_vector(d)
@@ -250,6 +297,8 @@ def assemble_rates(v, F, P, grad, node_material, table, edges, C, C_len, half, e
     rhs = local_vector(d)
     vC = local_vector(d)
     tC = local_vector(d)
+    fix = local_vector(d)
+    given = local_vector(d)
     for h in range(bface_node.shape[0]):
         if bface_in_contact[h]:
             continue
@@ -270,23 +319,27 @@ def assemble_rates(v, F, P, grad, node_material, table, edges, C, C_len, half, e
             for o in bface_others[h]:
                 vi[i] += v[o, i]
             vi[i] /= denominator
-            s = 0.0
             for J in range(d):
                 Fi[i, J] = own * F[a, i, J]
-                p = own * P[a, i, J]
+                Si[i, J] = own * sigma[a, i, J]
                 for o in bface_others[h]:
                     Fi[i, J] += F[o, i, J]
-                    p += P[o, i, J]
+                    Si[i, J] += sigma[o, i, J]
                 Fi[i, J] /= denominator
-                s += p * N[J]
-            ti[i] = s / denominator
-        spatial_normal(Fi, N, n)
-        boundary_state(vi, ti, zp, zs, n, bc_fixed[bc], bc_velocity[bc], bc_traction[bc], Z,
-                       rhs, vC, tC)
+                Si[i, J] /= denominator
+        area = face_geometry(Fi, N, props, n)
+        face_traction(Si, n, area, ti)
+        # a component the node's velocity is held at (e.g. by the clamp of a neighbouring
+        # region at a corner) is held on all its faces
+        for i in range(d):
+            fix[i] = 1.0 if bc_fixed[bc, i] else 0.0
+            given[i] = bc_velocity[bc, i]
+        boundary_state(vi, ti, zp, zs, n, fix, given, bc_traction[bc], Z, rhs, vC, tC)
         for i in range(d):
             force[a, i] += tC[i] * ln
+            vF = vC[i] if fix[i] else vi[i] + (tC[i] - ti[i]) / zp
             for J in range(d):
-                dF[a, i, J] += vC[i] * bface_C[h, J]
+                dF[a, i, J] += vF * bface_C[h, J]
 
 
 @njit(cache=True, parallel=True)
@@ -393,3 +446,4 @@ def point_fields(F, node_material, table, pressure, von_mises, jac, dim):
         pressure[a] = p
         von_mises[a] = vm
         jac[a] = determinant(Fa)
+

@@ -7,14 +7,39 @@ of length d = 2 or 3; the functions write their results into arrays the caller p
 never allocate, so the same source compiles for any backend.
 """
 
+from ..materials import small_strain
 from ..tensors import cofactor_times, dot, normalise, solve
 
 
 def spatial_normal(F, N, n):
-    """Unit spatial normal n = F^-T N / |F^-T N| of a dual face (seed eq. 9a); F^-T N is
-    parallel to cof(F) N."""
+    """Unit spatial normal n = F^-T N / |F^-T N| of a dual face (seed eq. 9a), written into
+    n; returns the area ratio da/dA = |cof(F) N| (Nanson: da n = cof(F) dA N)."""
     cofactor_times(F, N, n)
-    normalise(n)
+    return normalise(n)
+
+
+def face_geometry(F, N, props, n):
+    """Normal n and area ratio da/dA of a face of reference normal N and deformation F: the
+    spatial normal (Nanson) for finite-strain laws, the reference normal and 1 for
+    small-strain laws (for which sigma N is the nominal traction)."""
+    if small_strain(props):
+        for i in range(N.shape[0]):
+            n[i] = N[i]
+        return 1.0
+    return spatial_normal(F, N, n)
+
+
+def face_traction(sigma, n, area, t):
+    """Nominal traction (force per unit reference area) of a face with spatial normal n and
+    area ratio da/dA: t = sigma n da/dA, which is P N when sigma, n and da/dA come from the
+    same F (Nanson). Evaluated for both sides of a face with the face's own n and da/dA, the
+    traction jump sees no rigid rotation of a stressed state."""
+    d = n.shape[0]
+    for i in range(d):
+        s = 0.0
+        for k in range(d):
+            s += sigma[i, k] * n[k]
+        t[i] = s * area
 
 
 def impedance_times(zp, zs, n, w, out):
@@ -27,26 +52,35 @@ def impedance_times(zp, zs, n, w, out):
 
 def upwind_traction(tbar, dv, zp, zs, n, t):
     """Interior momentum flux (seed eq. 9a): the traction t = tbar + Z [[v]] / 2 between two
-    states of one material, with tbar = (P_a + P_b) N / 2 and [[v]] = v_b^+ - v_a^- the jump of
-    the reconstructed velocities across the dual face (N from a to b). Written into t."""
+    states of one material, with tbar the mean of their face tractions and [[v]] = v_b - v_a
+    the jump of their velocities across the dual face (N from a to b). Written into t."""
     impedance_times(zp, zs, n, dv, t)
     for i in range(n.shape[0]):
         t[i] = tbar[i] + 0.5 * t[i]
 
 
 def central_velocity(va, vb, v):
-    """Interior geometric flux (seed eq. 9b): the velocity v = (v_a + v_b) / 2 on the dual
+    """Geometric flux of seed eq. 9b as written: the velocity v = (v_a + v_b) / 2 on the dual
     face in the deformation-gradient equation."""
     for i in range(va.shape[0]):
         v[i] = 0.5 * (va[i] + vb[i])
 
 
-def upwind_velocity(va, vb, dt, zp, zs, n, v):
-    """Upwind variant of the geometric flux of seed eq. 9b: v = (v_a + v_b) / 2 + Z^-1 [[t]] / 2 with
-    [[t]] = t_b - t_a the jump of the tractions across the face."""
-    impedance_times(1.0 / zp, 1.0 / zs, n, dt, v)
-    for i in range(n.shape[0]):
-        v[i] = 0.5 * (va[i] + vb[i]) + 0.5 * v[i]
+def upwind_velocity(va, vb, dt, zp, v):
+    """Upwind geometric flux (the velocity on a dual face in seed eq. 9b):
+    v = (v_a + v_b) / 2 + [[t]] / (2 rho c_p), with [[t]] = t_b - t_a the jump of the face
+    tractions.
+
+    The acoustic Riemann velocity would divide the part of [[t]] across n by rho c_s instead.
+    At a p-wave front, a face oblique to the front sees a traction jump across its normal
+    that a Riemann solver along the normal takes for a shear wave; divided by rho c_s
+    (c_p / c_s = 10 at nu = 0.495) it became a tangential face velocity of order 100 m/s and
+    left spurious shear in F along the boundaries (docs/theory.md). With the p-wave impedance
+    in every direction the flux stays consistent and dissipative, and shear waves are still
+    captured by the momentum flux (docs/validation.md).
+    """
+    for i in range(va.shape[0]):
+        v[i] = 0.5 * (va[i] + vb[i]) + 0.5 * dt[i] / zp
 
 
 def boundary_state(v, t, zp, zs, n, fixed, v_given, t_given, Z, rhs, vC, tC):
@@ -85,12 +119,3 @@ def _impedance_entry(zp, zs, n, i, j):
     """Z_ij = zs delta_ij + (zp - zs) n_j n_i."""
     return zs * (1.0 if i == j else 0.0) + (zp - zs) * n[j] * n[i]
 
-
-def nominal_traction(P, N, t):
-    """t = P N."""
-    d = N.shape[0]
-    for i in range(d):
-        s = 0.0
-        for J in range(d):
-            s += P[i, J] * N[J]
-        t[i] = s

@@ -34,6 +34,8 @@ class FVStepper:
         self.limiter = LIMITER_IDS[case.run.limiter]
         self.cfl = case.run.cfl
         self.upwind_geometric = case.run.geometric_flux == "upwind"
+        # the upwind geometric flux needs the reconstructed tractions to be second order
+        self.stress_reconstructed = self.order == 2 and self.upwind_geometric
         # state
         self.v = m.v0.copy()
         self.F = np.zeros((n, d, d))
@@ -42,9 +44,12 @@ class FVStepper:
         self.x = m.X.copy()
         # work arrays, allocated once
         self.v0, self.F0, self.x0 = (np.empty_like(a) for a in (self.v, self.F, self.x))
-        self.P = np.empty((n, d, d))
-        self.grad = np.zeros((n, d, d))
-        self.vmin, self.vmax, self.phi = (np.empty((n, d)) for _ in range(3))
+        self.sigma = np.empty((n, d, d))  # Cauchy stress
+        ncomp = d + d * (d + 1) // 2 if self.stress_reconstructed else d
+        self.components = dim_tag(ncomp)
+        self.U = np.empty((n, ncomp)) if self.stress_reconstructed else self.v
+        self.grad = np.zeros((n, ncomp, d))
+        self.vmin, self.vmax, self.phi = (np.empty((n, ncomp)) for _ in range(3))
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
@@ -70,20 +75,25 @@ class FVStepper:
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
         state."""
         m = self.disc
-        K.compute_stress(self.F, m.node_material, m.material_table, self.P, self.dim)
+        K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
         if self.contact is not None:
             self.contact.stage(self.x, self.v, self.F, self.dt, stage)
+        if self.stress_reconstructed:
+            K.pack_velocity_and_stress(self.v, self.sigma, self.U, self.dim)
         if self.order == 2:
-            K.velocity_gradient(self.v, m.edges, m.C, m.edge_offsets, m.bface_node,
-                                m.bface_others, m.bface_C, m.closure, m.volume, self.grad,
-                                self.vmin, self.vmax, self.dim)
+            K.gradient(self.U, m.edges, m.C, m.edge_offsets, m.bface_node, m.bface_others,
+                       m.bface_C, m.closure, m.volume, self.grad, self.vmin, self.vmax,
+                       self.dim, self.components)
             if self.limiter != LIMITER_NONE:
-                K.limit_gradient(self.v, m.edges, m.half, m.edge_offsets, self.limiter,
-                                 self.vmin, self.vmax, self.phi, self.grad, self.dim)
-        K.assemble_rates(self.v, self.F, self.P, self.grad, m.node_material, m.material_table,
+                K.limit_gradient(self.U, m.edges, m.half, m.edge_offsets, self.limiter,
+                                 self.vmin, self.vmax, self.phi, self.grad, self.dim,
+                                 self.components)
+        K.assemble_rates(self.v, self.F, self.sigma, self.grad, m.node_material, m.material_table,
                          m.edges, m.C, m.C_len, m.half, m.edge_offsets, m.bface_node,
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
-                         m.bc_velocity, m.bc_traction, self.order == 2, self.upwind_geometric,
+                         m.bc_velocity, m.bc_traction, m.fixed_mask, m.fixed_value,
+                         self.order == 2,
+                         self.stress_reconstructed, self.upwind_geometric,
                          self.face_in_contact, self.force, self.dF, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF)
