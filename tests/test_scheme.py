@@ -35,22 +35,30 @@ def test_uniform_stretch_with_matching_tractions_stays_uniform(block):
     assert np.abs(solver.v).max() < 1e-9
 
 
-def test_free_body_conserves_momentum_and_never_gains_energy(block):
-    case = block(divisions=(24, 10), end_time=2e-5, order=2,
-                 velocity=["30*sin(400*x) + 5000*y", "20*cos(900*y) - 3000*x"])
-    h = run(load_case(case)).history
-    for key in ("momentum_x", "momentum_y"):
-        scale = np.abs(h["momentum_x"][0]) + np.abs(h["momentum_y"][0])
-        assert np.abs(h[key] - h[key][0]).max() < 1e-12 * scale
-    E = h["total_energy"]
-    assert np.all(np.diff(E) <= 1e-12 * E[0])
-    assert E[-1] < E[0]  # upwinding dissipates a little
-    assert E[-1] > 0.9 * E[0]
+@pytest.mark.parametrize("geometric_flux", ["central", "upwind"])
+def test_free_body_conserves_momentum_and_never_gains_energy(block, geometric_flux):
+    """A free body with a sheared, rotating velocity field: momentum exact, energy never
+    rises, and what the upwinding dissipates falls by more than half when h halves
+    (measured: central 5.9% -> 1.8%, upwind 12.9% -> 4.4% of E0 in 20 us)."""
+    lost = []
+    for n in (1, 2):
+        case = block(divisions=(24 * n, 10 * n), end_time=2e-5, order=2,
+                     geometric_flux=geometric_flux,
+                     velocity=["30*sin(400*x) + 5000*y", "20*cos(900*y) - 3000*x"])
+        h = run(load_case(case)).history
+        for key in ("momentum_x", "momentum_y"):
+            scale = np.abs(h["momentum_x"][0]) + np.abs(h["momentum_y"][0])
+            assert np.abs(h[key] - h[key][0]).max() < 1e-12 * scale
+        E = h["total_energy"]
+        assert np.all(np.diff(E) <= 1e-12 * E[0])
+        lost.append(1.0 - E[-1] / E[0])
+    assert lost[0] > 0.0  # upwinding dissipates
+    assert lost[1] < 0.5 * lost[0]
 
 
 def test_interior_F_stays_the_gradient_of_positions(block):
     """With the central geometric flux F_a = GG(x)_a at every interior node."""
-    case = block(divisions=(16, 8), end_time=1e-5,
+    case = block(divisions=(16, 8), end_time=1e-5, geometric_flux="central",
                  velocity=["30*sin(400*x)", "20*cos(900*y) - 3000*x"])
     solver = FVStepper(load_case(case))
     for _ in range(30):
@@ -77,7 +85,9 @@ def test_limiter_removes_the_overshoot_at_a_velocity_jump(block, limiter):
         vx = run(load_case(case)).bodies["block"]["velocity"][:, 0]
         return max(vx.max() - 10.0, -vx.min())
     limited, unlimited = peak(limiter), peak("none")
-    assert limited < 1e-4 * 10.0
+    # Barth-Jespersen keeps every reconstructed value within its neighbours' range;
+    # Venkatakrishnan's smooth limiter lets a small overshoot through by design
+    assert limited < (1e-4 if limiter == "barth_jespersen" else 1e-2) * 10.0
     assert limited < unlimited
 
 

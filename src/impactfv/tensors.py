@@ -41,6 +41,12 @@ def cofactor_times(F, N, out):
         out[i] = s
 
 
+def symmetric_index(i, j, d):
+    """Position of the component (i, j), i <= j, among the d (d + 1) / 2 independent
+    components of a symmetric d x d matrix, row by row."""
+    return i * d - i * (i - 1) // 2 + (j - i)
+
+
 def dot(u, w):
     s = 0.0
     for i in range(u.shape[0]):

@@ -20,6 +20,7 @@ from .. import materials as M
 from ..backends.cpu import (load_matrix, load_vector, local_matrix, local_rows, local_vector,
                             point, store_matrix)
 from ..tensors import determinant as _determinant
+from ..tensors import symmetric_index as _symmetric_index
 from . import limiters as L
 from . import riemann as R
 from . import time as T
@@ -29,6 +30,7 @@ strain_energy_density = point(M.strain_energy_density)
 pressure_and_von_mises = point(M.pressure_and_von_mises)
 min_stretch = point(M.min_stretch)
 determinant = point(_determinant)
+symmetric_index = point(_symmetric_index)
 spatial_normal = point(R.spatial_normal)
 face_geometry = point(R.face_geometry)
 face_traction = point(R.face_traction)
@@ -52,12 +54,6 @@ def compute_stress(F, node_material, table, sigma, dim):
         load_matrix(F, a, Fa)
         cauchy_stress(Fa, table[node_material[a]], sa)
         store_matrix(sa, sigma, a)
-
-
-@njit(cache=True, inline="always")
-def symmetric_index(i, j, d):
-    """Position of sigma_ij (i <= j) among the d (d + 1) / 2 independent components."""
-    return i * d - i * (i - 1) // 2 + (j - i)
 
 
 @njit(cache=True, parallel=True)
@@ -267,10 +263,12 @@ def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len
 def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                    edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
                    bc_velocity, bc_traction, fixed_mask, fixed_value, use_reconstruction,
-                   stress_reconstructed, upwind_geometric, bface_in_contact, force, dF, dim):
+                   stress_reconstructed, upwind_geometric, bface_contact_weight, force, dF,
+                   dim):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt.
 
-    Dual boundary faces whose node is in contact are left to the contact module.
+    A dual boundary face takes its boundary flux for the part of the face and of the step it
+    is not in contact (1 - bface_contact_weight); the contact module adds the rest.
     """
     d = len(dim)
     own, denominator = closure
@@ -300,7 +298,8 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     fix = local_vector(d)
     given = local_vector(d)
     for h in range(bface_node.shape[0]):
-        if bface_in_contact[h]:
+        free = 1.0 - bface_contact_weight[h]
+        if free == 0.0:
             continue
         bc = bface_bc[h]
         a = bface_node[h]
@@ -336,10 +335,12 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
             given[i] = bc_velocity[bc, i]
         boundary_state(vi, ti, zp, zs, n, fix, given, bc_traction[bc], Z, rhs, vC, tC)
         for i in range(d):
-            force[a, i] += tC[i] * ln
+            force[a, i] += free * tC[i] * ln
+            # the F equation's velocity: the prescribed one, or from the traction with the
+            # p-wave impedance in every direction (as in the interior, riemann.upwind_velocity)
             vF = vC[i] if fix[i] else vi[i] + (tC[i] - ti[i]) / zp
             for J in range(d):
-                dF[a, i, J] += vF * bface_C[h, J]
+                dF[a, i, J] += free * vF * bface_C[h, J]
 
 
 @njit(cache=True, parallel=True)
