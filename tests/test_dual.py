@@ -66,3 +66,26 @@ def test_gradient_equals_area_weighted_element_gradients():
             ref[node] += area[e] / 3 * ge
     ref /= d.volumes[:, None]
     assert np.abs(g - ref).max() < 1e-11 * np.abs(ref).max()
+
+
+def test_disc_generator_covers_the_polygon_with_good_triangles():
+    from impactfv.mesh import disc
+
+    mesh = disc((1.0, -2.0), 0.5, 6)
+    n = 6 * 6
+    assert mesh.n_nodes == 1 + 3 * 6 * 7
+    dual = median_dual(mesh.points, mesh.cells)
+    assert dual.volumes.sum() == pytest.approx(0.5 * n * 0.25 * np.sin(2 * np.pi / n),
+                                               rel=1e-12)
+    p = mesh.points[mesh.cells]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    area = 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    assert area.min() > 0.3 * area.mean()
+    outer = mesh.regions["outer"]
+    assert len(outer) == n
+    assert np.allclose(np.linalg.norm(mesh.points[outer[:, 0]] - [1.0, -2.0], axis=1), 0.5)
+    # counter-clockwise: each facet's right-hand normal points out of the disc
+    edge = mesh.points[outer[:, 1]] - mesh.points[outer[:, 0]]
+    normal = np.column_stack([edge[:, 1], -edge[:, 0]])
+    mid = 0.5 * (mesh.points[outer[:, 0]] + mesh.points[outer[:, 1]]) - [1.0, -2.0]
+    assert np.all((normal * mid).sum(axis=1) > 0)

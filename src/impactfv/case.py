@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .errors import InputError
 from .expr import compile_expression
 from .materials import Material
-from .mesh.generators import DIAGONAL_PATTERNS, rectangle
+from .mesh.generators import DIAGONAL_PATTERNS, disc, rectangle
 from .mesh.reader import read_mesh
 from .mesh.core import Mesh, validate_and_orient
 
@@ -64,17 +64,21 @@ class MaterialSpec(_Strict):
 
 
 class MeshSpec(_Strict):
-    generator: Optional[Literal["rectangle"]] = None
+    generator: Optional[Literal["rectangle", "disc"]] = None
     origin: Optional[tuple[float, float]] = None
     size: Optional[tuple[float, float]] = None
     divisions: Optional[tuple[int, int]] = None
     pattern: str = "alternate"
+    centre: Optional[tuple[float, float]] = None
+    radius: Optional[float] = Field(None, allow_inf_nan=False)
+    rings: Optional[int] = None
     file: Optional[str] = None
 
     @model_validator(mode="after")
     def _one_source(self):
         if (self.generator is None) == (self.file is None):
-            raise ValueError("give either generator = \"rectangle\" or file = \"path\"")
+            raise ValueError("give either generator = \"rectangle\" or \"disc\", or "
+                             "file = \"path\"")
         if self.generator == "rectangle":
             for key in ("origin", "size", "divisions"):
                 if getattr(self, key) is None:
@@ -85,6 +89,14 @@ class MeshSpec(_Strict):
                 raise ValueError("divisions must be two positive integers")
             if self.pattern not in DIAGONAL_PATTERNS:
                 raise ValueError(f"pattern must be one of {', '.join(DIAGONAL_PATTERNS)}")
+        if self.generator == "disc":
+            for key in ("centre", "radius", "rings"):
+                if getattr(self, key) is None:
+                    raise ValueError(f"disc needs {key}")
+            if self.radius <= 0:
+                raise ValueError("radius must be a positive length")
+            if self.rings < 1:
+                raise ValueError("rings must be a positive integer")
         return self
 
 
@@ -273,6 +285,9 @@ def _check_names(spec: CaseSpec, source: str):
 def _build_mesh(spec: MeshSpec, base: Path, key: str) -> Mesh:
     if spec.generator == "rectangle":
         mesh = rectangle(spec.origin, spec.size, spec.divisions, spec.pattern)
+        source = key
+    elif spec.generator == "disc":
+        mesh = disc(spec.centre, spec.radius, spec.rings)
         source = key
     else:
         path = Path(spec.file)

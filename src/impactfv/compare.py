@@ -31,6 +31,8 @@ for two equal bodies ``p_ref = rho c_p v0`` with ``v0 = v_close / 2``):
 * ``plateau_pressure_MPa``: mean contact force over the middle 60 % of the contact phase
   (:func:`impactfv.validation.bars.pulse`) divided by the reference length of the contact
   surface (the shorter of the two bodies' extents across the contact direction);
+* ``impulse_Ns_per_m``: the contact impulse (the time integral of the contact force on the
+  first body, per unit thickness), i.e. the momentum the contact exchanged over the run;
 * ``wall_time_s``, ``steps``;
 * ``penetration_per_h``: the deepest penetration (``-min gap``, 0 if the gap never closes
   below 0) over the run divided by the shortest reference mesh edge;
@@ -59,7 +61,7 @@ LABELS = {"fv": "FV (upwind vertex-centred)", "fem-t3": "FE T3 (linear triangles
 COLORS = {"fv": "C0", "fem-t3": "C3", "fem-q4md": "C2"}
 COLUMNS = ("method", "nodes", "steps", "wall_time_s", "roughness", "peak_pressure_MPa",
            "peak_over_pref", "peak_contact_pressure_MPa", "peak_contact_over_pref",
-           "plateau_pressure_MPa", "plateau_over_pref", "penetration_per_h",
+           "plateau_pressure_MPa", "plateau_over_pref", "impulse_Ns_per_m", "penetration_per_h",
            "momentum_drift", "energy_end_over_start", "energy_with_contact_end_over_start")
 
 
@@ -167,7 +169,10 @@ def metrics(method, result, ref, case) -> dict:
     roughness = pressure_roughness(bodies, p_ref)
     peak = max(float(np.max(f["pressure"])) for f in bodies.values())
     plateau, (t0, t1) = plateau_force(h, ref)
-    fmax = float(np.max(contact_force(h, ref)))
+    force = contact_force(h, ref)
+    fmax = float(np.max(force))
+    t = h["time"]
+    impulse = float(np.sum(0.5 * (force[1:] + force[:-1]) * np.diff(t)))
     gaps = np.concatenate([h[k] for k in h if k.startswith("contact") and k.endswith("_gap")])
     gaps = gaps[np.isfinite(gaps)]
     pen = max(0.0, -float(gaps.min())) if len(gaps) else 0.0
@@ -189,6 +194,7 @@ def metrics(method, result, ref, case) -> dict:
         "peak_contact_over_pref": fmax / ref["width"] / p_ref,
         "plateau_pressure_MPa": plateau / ref["width"] / 1e6,
         "plateau_over_pref": plateau / ref["width"] / p_ref,
+        "impulse_Ns_per_m": impulse,
         "penetration_per_h": pen / hmin, "momentum_drift": drift,
         "energy_end_over_start": float(mech[-1] / mech[0]),
         "energy_with_contact_end_over_start":

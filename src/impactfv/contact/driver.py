@@ -2,9 +2,10 @@
 
 Each [[contact]] pairs two bodies (both treated alike: the nodes of each are checked against
 the segments of the other, each pass contributing half the force) or one body and a rigid
-wall. Per stage: search -> overlap -> Riemann step -> assembly. Active contact nodes take
-the Riemann contact velocity in their F equation and their positions, and the Riemann
-traction in their momentum equation, in place of the free boundary flux of their faces.
+wall. Per stage: search -> overlap -> Riemann step -> assembly. Contact nodes take the
+contact velocity in their F equation and their motion, and the Riemann traction in their
+momentum equation, in place of the free boundary flux of their faces, for the part of the
+face and of the step they are in contact (docs/contact.md).
 """
 
 from __future__ import annotations
@@ -18,17 +19,18 @@ from ..geometry.bins import build_bins
 from ..geometry.surfaces import surface_facets
 from ..mesh.edges import facet_index
 from . import riemann_step as RS
-from .overlap import contact_pieces
-from .search import find_partners, surface_geometry, wall_gaps
+from .overlap import closing_fractions, contact_pieces
+from .search import find_partners, surface_normals, wall_gaps
 
 
 @dataclass
 class Surface:
     """The contact surface of one body in one contact."""
 
-    nodes: np.ndarray   # its nodes
-    facets: np.ndarray  # its boundary facets (segments in 2D)
-    faces: np.ndarray   # the dual boundary faces on them
+    nodes: np.ndarray          # its nodes
+    facets: np.ndarray         # its boundary facets (segments in 2D)
+    faces: np.ndarray          # the dual boundary faces on them
+    facet_faces: np.ndarray    # per facet, the dual faces of its two end nodes on it
 
 
 @dataclass
@@ -68,25 +70,28 @@ class ContactSystem:
         surfaces = [s for p in self.pairs for s in p.surfaces]
         all_facets = np.concatenate([s.facets for s in surfaces])
         lengths = np.linalg.norm(disc.X[all_facets[:, 1]] - disc.X[all_facets[:, 0]], axis=1)
+        # search radius: a node farther than two segments from the partner cannot touch it
+        # within a step (it moves far less than a segment per step at any stable time step)
         self.pad = 2.0 * lengths.max()
         self.surface_nodes = np.unique(np.concatenate([s.nodes for s in surfaces]))
         self.faces = np.unique(np.concatenate([s.faces for s in surfaces]))
         h = len(disc.bface_node)
-        self.face_active = np.zeros(h, bool)
-        self.face_velocity = np.zeros((h, d))  # overlap-weighted v* per face
-        self.cover = np.zeros(h)               # fraction of each face in contact
+        self.face_weight = np.zeros(h)         # fraction of each face and step in contact
+        self.face_velocity = np.zeros((h, d))  # contact velocity per face, times face_weight
         # contact faces of each node (CSR over all nodes)
         owners = disc.bface_node[self.faces]
         self.face_list = self.faces[np.argsort(owners, kind="stable")]
         self.face_start = np.concatenate([[0], np.cumsum(np.bincount(owners, minlength=n))])
+        # nodes all of whose boundary faces are contact faces (not the ends of a contact face)
+        self.flat = np.diff(self.face_start) == np.bincount(disc.bface_node, minlength=n)
+        self.flat &= np.diff(self.face_start) > 0
         self.state = np.zeros(n, np.int8)       # OPEN, STICK or SLIP
-        self.was_active = np.zeros(n, np.int8)
-        self.vstar = np.zeros((n, d))
+        self.memory = np.zeros(n, np.int8)      # in contact at the end of the previous step
+        self.phi = np.zeros(n)                  # fraction of this step in contact
         self.xdot = np.zeros((n, d))            # velocity moving the positions of contact nodes
         self.tstar_n = np.zeros(n)
         self.force_acc = np.zeros((n, d))
         self.normal_out = np.zeros((n, d))      # outward surface normal
-        self.sig = np.zeros((n, d, d))          # Cauchy stress of surface nodes
         # search results of the current pass
         self.partner = np.full(n, -1, np.int64)
         self.partner_xi = np.zeros(n)
@@ -95,16 +100,17 @@ class ContactSystem:
         self.normal = np.zeros((n, d))          # contact normal, from the node into the partner
         # per-node sums of the Riemann step
         self.length_sum = np.zeros(n)
-        self.velocity_sum = np.zeros((n, d))
+        self.motion_sum = np.zeros((n, d))
         self.traction_sum = np.zeros(n)
         self._pieces(4 * len(self.faces) + 16)
-        self.wall_faces = np.zeros(max(int(np.diff(self.face_start).max()), 1), np.int64)
+        self.wall_face_buffer = np.zeros(max(int(np.diff(self.face_start).max()), 1), np.int64)
 
     def _pieces(self, capacity):
         d = self.disc.dim
         self.piece_node = np.zeros(capacity, np.int64)
         self.piece_face = np.zeros(capacity, np.int64)
         self.piece_partner = np.zeros(capacity, np.int64)
+        self.piece_segment = np.zeros(capacity, np.int64)
         self.piece_length = np.zeros(capacity)
         self.piece_face_length = np.zeros(capacity)
         self.piece_normal = np.zeros((capacity, d))
@@ -116,52 +122,65 @@ class ContactSystem:
                                 f"{case.source}: contact[{k}].regions", name)
         facet_ids = facet_index(layout.facets, facets, f"contact[{k}]") + layout.facet_offset
         faces = np.flatnonzero(np.isin(disc.bface_facet, facet_ids))
-        return Surface(np.unique(facets), facets, faces)
+        # the two dual faces on each facet, in the order of the facet's end nodes
+        facet_faces = np.full((len(facets), 2), -1, np.int64)
+        row = {f: k for k, f in enumerate(facet_ids)}
+        for face in faces:
+            k = row[disc.bface_facet[face]]
+            facet_faces[k, 0 if disc.bface_node[face] == facets[k, 0] else 1] = face
+        return Surface(np.unique(facets), facets, faces, facet_faces)
 
     # ------------------------------------------------------------------ per stage
-    def stage(self, x, v, F, dt, stage_index):
-        """Contact states and forces for the current stage (before the flux assembly)."""
-        if stage_index == 1:
-            # a node that touched in stage 1 stays a candidate in stage 2 (no chattering)
-            nodes = self.surface_nodes
-            self.was_active[nodes] = np.maximum(self.was_active[nodes], self.state[nodes])
+    def stage(self, x, v, F, sigma, grad, reconstructed, dt, stage_index):
+        """Contact states and forces for the current stage, from the state's velocities and
+        stresses (before the flux assembly); the gradients of the nodes in contact inside a
+        contact face are dropped when the scheme reconstructs. Which nodes touch
+        during the step, and when, is decided in the first stage and kept in the second."""
         RS.reset_surface(self.surface_nodes, self.faces, self.state, self.force_acc,
-                         self.tstar_n, self.face_velocity, self.cover, self.length_sum,
-                         self.velocity_sum, self.traction_sum)
-        self._geometry(x, F)
+                         self.tstar_n, self.face_weight, self.face_velocity, self.length_sum,
+                         self.motion_sum, self.traction_sum)
+        self._geometry(x)
         for pair in self.pairs:
             fsum = pair.fsum[stage_index]
             fsum[:] = 0.0
-            self._passes(pair, x, v, F, dt, True, fsum)
-        RS.mark_contact_faces(self.faces, self.cover, self.face_active)
+            self._passes(pair, x, v, F, sigma, dt, stage_index, fsum)
+        RS.settle_nodes(self.surface_nodes, self.faces, v, self.length_sum, self.motion_sum,
+                        self.traction_sum, self.face_weight, self.face_velocity, self.xdot,
+                        self.tstar_n)
+        if reconstructed:
+            RS.first_order_in_contact(self.surface_nodes, self.state, self.flat, grad)
 
-    def _geometry(self, x, F):
-        disc = self.disc
+    def _geometry(self, x):
         for pair in self.pairs:
             for s in pair.surfaces:
-                surface_geometry(x, F, disc.node_material, disc.material_table, s.nodes,
-                                 s.facets, self.normal_out, self.sig)
+                surface_normals(x, s.nodes, s.facets, self.normal_out)
 
-    def _passes(self, pair, x, v, F, dt, apply, fsum):
-        """Search (and with ``apply`` the overlap and Riemann steps) of one contact; returns
-        the smallest gap."""
+    def _passes(self, pair, x, v, F, sigma, dt, stage_index, fsum):
+        """Search, and from a stage on (stage_index >= 0) the overlap and Riemann steps, of
+        one contact; returns the smallest gap."""
         disc = self.disc
+        apply = stage_index >= 0
         if pair.wall_normal is not None:
             slave = pair.surfaces[0].nodes
             gmin = wall_gaps(x, slave, pair.wall_point, pair.wall_normal, self.gap,
                              self.normal)
             if apply:
-                RS.wall_pass(v, F, self.sig, disc.node_material, disc.material_table, slave,
-                             self.face_start, self.face_list, disc.bface_C,
-                             self.face_velocity, self.cover, disc.node_length, self.gap,
-                             self.normal, pair.wall_velocity, dt, pair.stick,
-                             self.was_active, self.wall_faces, self.state, self.vstar,
-                             self.xdot, self.tstar_n, self.force_acc, fsum, self.dim)
+                if stage_index == 0:
+                    RS.wall_fractions(v, slave, self.gap, self.normal, pair.wall_velocity,
+                                      self.memory, dt, self.phi)
+                RS.wall_pass(disc.X, x, F, v, sigma, disc.node_material,
+                             disc.material_table, slave, self.face_start, self.face_list,
+                             disc.bface_C, disc.bface_others, self.normal,
+                             pair.wall_velocity, pair.stick, self.phi, self.wall_face_buffer,
+                             self.force_acc, fsum, self.face_weight, self.face_velocity,
+                             self.state, self.length_sum, self.motion_sum,
+                             self.traction_sum, self.dim)
             return gmin
         gmin = np.inf
         for first, (slave, master) in enumerate(((0, 1), (1, 0))):
             slave_nodes = pair.surfaces[slave].nodes
             segs = pair.surfaces[master].facets
+            segment_faces = pair.surfaces[master].facet_faces
             bins = build_bins(x, segs, self.pad)
             g = find_partners(x, slave_nodes, self.normal_out, segs, *bins, self.pad,
                               self.partner, self.partner_xi, self.partner_dist, self.gap,
@@ -169,30 +188,30 @@ class ContactSystem:
             gmin = min(gmin, g)
             if not apply:
                 continue
-            count = self._contact_pieces(x, v, dt, slave_nodes, segs, bins)
-            self.length_sum[slave_nodes] = 0.0
-            self.velocity_sum[slave_nodes] = 0.0
-            self.traction_sum[slave_nodes] = 0.0
-            RS.piece_states(v, self.sig, disc.node_material, disc.material_table, count,
-                            self.piece_node, self.piece_face, self.piece_partner,
-                            self.piece_length, self.piece_face_length, self.piece_normal, 0.5,
+            if stage_index == 0:
+                closing_fractions(x, v, slave_nodes, self.partner, self.partner_xi, self.gap,
+                                  self.normal, segs, self.memory, dt, self.phi)
+            count = self._contact_pieces(x, slave_nodes, segs, bins)
+            RS.piece_states(disc.X, x, F, v, sigma, disc.node_material,
+                            disc.material_table, disc.bface_C, disc.bface_others, segs,
+                            segment_faces, self.phi, count, self.piece_node, self.piece_face,
+                            self.piece_partner, self.piece_segment, self.piece_length,
+                            self.piece_face_length, self.piece_normal, 0.5,
                             1.0 if first == 0 else -1.0, pair.stick, self.force_acc, fsum,
-                            self.face_velocity, self.cover, self.length_sum,
-                            self.velocity_sum, self.traction_sum, self.dim)
-            RS.settle_nodes(slave_nodes, v, dt, 0.5, pair.stick, self.gap, self.normal,
-                            self.length_sum, self.velocity_sum, self.traction_sum, self.state,
-                            self.vstar, self.xdot, self.tstar_n, self.dim)
+                            self.face_weight, self.face_velocity, self.state,
+                            self.length_sum, self.motion_sum, self.traction_sum, self.dim)
         return gmin
 
-    def _contact_pieces(self, x, v, dt, slave_nodes, segs, bins):
+    def _contact_pieces(self, x, slave_nodes, segs, bins):
         disc = self.disc
         while True:
-            count = contact_pieces(x, v, slave_nodes, self.partner, self.partner_xi,
-                                   self.partner_dist, self.gap, self.normal, self.was_active,
-                                   disc.node_length, dt, self.face_start, self.face_list,
-                                   disc.bface_others, segs, *bins, self.piece_node,
-                                   self.piece_face, self.piece_partner, self.piece_length,
-                                   self.piece_face_length, self.piece_normal)
+            count = contact_pieces(x, disc.X, slave_nodes, self.partner, self.partner_dist,
+                                   self.normal, self.phi, self.face_start, self.face_list,
+                                   disc.bface_others, disc.bface_C, segs, *bins,
+                                   self.piece_node,
+                                   self.piece_face, self.piece_partner, self.piece_segment,
+                                   self.piece_length, self.piece_face_length,
+                                   self.piece_normal)
             if count <= len(self.piece_node):
                 return count
             self._pieces(2 * count)
@@ -200,17 +219,16 @@ class ContactSystem:
     def apply(self, force, dF):
         disc = self.disc
         RS.apply_contact(self.surface_nodes, self.faces, disc.bface_node, disc.bface_C,
-                         self.face_active, self.face_velocity, self.cover, self.state,
-                         self.vstar, self.xdot, self.force_acc, disc.fixed_mask,
-                         disc.fixed_value, force, dF)
+                         self.face_weight, self.face_velocity, self.state, self.xdot,
+                         self.force_acc, disc.fixed_mask, disc.fixed_value, force, dF)
 
     def end_step(self, x, v, F):
         """Remember who is in contact; measure the gaps at the new positions."""
-        self.was_active[self.surface_nodes] = self.state[self.surface_nodes]
-        self._geometry(x, F)
+        self.memory[self.surface_nodes] = self.state[self.surface_nodes]
+        self._geometry(x)
         scratch = np.zeros(self.disc.dim)
         for pair in self.pairs:
-            g = self._passes(pair, x, v, F, 0.0, False, scratch)
+            g = self._passes(pair, x, v, F, None, 0.0, -1, scratch)
             pair.gap = g if np.isfinite(g) else np.nan
 
     def history_columns(self):

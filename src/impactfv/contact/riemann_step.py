@@ -1,47 +1,94 @@
 """Riemann step (compiled): the contact state of every piece and what it adds to the two
 bodies' equations; then each contact node's state, contact velocity and motion.
 
-A piece of length l in contact (not released) gives weight t* l to the node's momentum
-equation and -weight t* l to the partner node's (equal and opposite: momentum is passed
-between the bodies exactly); its face carries the node's contact velocity v* in the F
-equation (seed eq. 9b). Both bodies are treated alike by two passes, each with weight 1/2.
+Each side's state is its node's velocity and Cauchy stress closed to its face as the free
+boundary flux does, (5 u_a + u_o) / 6. The Riemann problem is posed in
+nominal tractions, as the seed's eq. 5: per unit reference area of its face each side carries
+t = sigma n da/dA with impedance rho c; written per unit spatial area (where the two sides'
+tractions must balance) that is sigma n with impedance rho c / (da/dA). A piece of spatial
+length l in contact for the fraction phi of the step (its node touched during the step) gives
+weight phi t* l to the node's momentum equation and -weight phi t* l to the partner node's:
+momentum passes between the bodies exactly. Its face carries the node's contact velocity in
+the F equation, and the node moves with it (laws.kinematic_velocity). Both bodies are treated
+alike by two passes, each with weight 1/2.
 """
 
+import math
 
 from numba import njit
 
 from .. import materials as M
-from ..backends.cpu import load_vector, local_vector, point
+from ..backends.cpu import load_vector, local_matrix, local_vector, point
+from ..scheme import riemann as R
+from ..tensors import symmetric_index as _symmetric_index
 from . import laws as CL
-from .overlap import facing_faces, is_candidate
+from .overlap import wall_faces
 
 contact_state = point(CL.contact_state)
+kinematic_velocity = point(CL.kinematic_velocity)
 wall_state = point(CL.wall_state)
 releases = point(CL.releases)
+face_geometry = point(R.face_geometry)
+symmetric_index = point(_symmetric_index)
 
 RHO, CP, CS = M.RHO, M.CP, M.CS
 OPEN, STICK, SLIP = 0, 1, 2
 
 
 @njit(cache=True, inline="always")
-def _traction(sig, a, n, t, d):
-    """Cauchy traction sigma_a n."""
+def face_state(a, o, v, sigma, vf, sf, d):
+    """Velocity and Cauchy stress of node a on its face towards node o: the boundary closure
+    (5 u_a + u_o) / 6 of the free-surface flux (docs/contact.md: reconstructed states made
+    the contact work unbalanced and the energy rise)."""
+    for i in range(d):
+        vf[i] = (5.0 * v[a, i] + v[o, i]) / 6.0
+        for j in range(i, d):
+            s = (5.0 * sigma[a, i, j] + sigma[o, i, j]) / 6.0
+            sf[i, j] = s
+            sf[j, i] = s
+
+
+@njit(cache=True, inline="always")
+def area_ratio(F, a, N1, N2, props, Fa, N, scratch):
+    """da/dA of a face of node a with reference unit normal (N1, N2)."""
+    for i in range(2):
+        for J in range(2):
+            Fa[i, J] = F[a, i, J]
+    N[0] = N1
+    N[1] = N2
+    return face_geometry(Fa, N, props, scratch)
+
+
+@njit(cache=True, inline="always")
+def _traction(S, n, t, d):
+    """Cauchy traction S n."""
     for i in range(d):
         s = 0.0
         for J in range(d):
-            s += sig[a, i, J] * n[J]
+            s += S[i, J] * n[J]
         t[i] = s
 
 
 @njit(cache=True)
-def piece_states(v, sig, node_material, table, count, piece_node, piece_face, piece_partner,
-                 piece_length, piece_face_length, piece_normal, weight, sign, stick,
-                 force_acc, fsum, face_velocity, cover, length_sum, velocity_sum,
-                 traction_sum, dim):
-    """Contact states of the pieces, in order; forces into force_acc (and their total on the
-    first body, times ``sign``, into fsum), face velocities, and per-node sums of length,
-    l v* and l t*_n."""
+def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others, segs, segment_faces, phi, count,
+                 piece_node, piece_face, piece_partner, piece_segment, piece_length,
+                 piece_face_length, piece_normal, weight, sign, stick, force_acc, fsum,
+                 face_weight, face_velocity, state, length_sum, motion_sum, traction_sum,
+                 dim):
+    """Contact states of the pieces, in order. A piece of pass weight w (1/2 between two
+    bodies: each body's nodes are checked against the other's surface) gives both sides w of
+    the contact: the tractions +-w phi t* l (their total on the first body, times ``sign``,
+    into fsum); on each side's face the part w phi l / l_face of face and step in contact,
+    with that side's contact velocity (face_weight, and face_velocity weighted by it); and
+    per node the sums of w l, w phi l (v_kin - v) and w l t*_n for its motion and output.
+    Both sides of every piece get the same treatment, so that the work of the contact
+    traction on the two bodies balances whichever body's pass found it."""
     d = len(dim)
+    SA = local_matrix(d)
+    SB = local_matrix(d)
+    Fa = local_matrix(d)
+    vA = local_vector(d)
+    vB = local_vector(d)
     tA = local_vector(d)
     tB = local_vector(d)
     vtA = local_vector(d)
@@ -51,126 +98,158 @@ def piece_states(v, sig, node_material, table, count, piece_node, piece_face, pi
     vsA = local_vector(d)
     vsB = local_vector(d)
     ts = local_vector(d)
-    vA = local_vector(d)
-    vB = local_vector(d)
     c = local_vector(d)
+    mtB = local_vector(d)
+    mts = local_vector(d)
+    N = local_vector(d)
+    scratch = local_vector(d)
     for p in range(count):
         a = piece_node[p]
         b = piece_partner[p]
+        face = piece_face[p]
+        sm = piece_segment[p]
+        o = bface_others[face, 0]
+        side = 0 if segs[sm, 0] == b else 1
+        ob = segs[sm, 1 - side]
+        face_b = segment_faces[sm, side]
         load_vector(piece_normal, p, c)
-        load_vector(v, a, vA)
-        load_vector(v, b, vB)
-        _traction(sig, a, c, tA, d)
-        _traction(sig, b, c, tB, d)
+        face_state(a, o, v, sigma, vA, SA, d)
+        face_state(b, ob, v, sigma, vB, SB, d)
+        _traction(SA, c, tA, d)
+        _traction(SB, c, tB, d)
         pa = table[node_material[a]]
         pb = table[node_material[b]]
-        tn = contact_state(vA, tA, vB, tB, c, pa[RHO] * pa[CP], pa[RHO] * pa[CS],
-                           pb[RHO] * pb[CP], pb[RHO] * pb[CS], stick, vtA, ttA, vtB, ttB,
+        # area ratios of the two faces (reference normals: the slave face's, the segment's)
+        lc = math.sqrt(bface_C[face, 0] ** 2 + bface_C[face, 1] ** 2)
+        ra = area_ratio(F, a, bface_C[face, 0] / lc, bface_C[face, 1] / lc, pa, Fa, N,
+                        scratch)
+        e1 = X[segs[sm, 1], 0] - X[segs[sm, 0], 0]
+        e2 = X[segs[sm, 1], 1] - X[segs[sm, 0], 1]
+        le = math.sqrt(e1 * e1 + e2 * e2)
+        rb = area_ratio(F, b, e2 / le, -e1 / le, pb, Fa, N, scratch)
+        zpA = pa[RHO] * pa[CP] / ra
+        zsA = pa[RHO] * pa[CS] / ra
+        zpB = pb[RHO] * pb[CP] / rb
+        zsB = pb[RHO] * pb[CS] / rb
+        tn = contact_state(vA, tA, vB, tB, c, zpA, zsA, zpB, zsB, stick, vtA, ttA, vtB, ttB,
                            vsA, vsB, ts)
         if releases(tn):
             continue
-        ell = piece_length[p]
         for i in range(d):
-            f = weight * ell * ts[i]
+            # B's view: tractions on surfaces of normal -c, out of B
+            mtB[i] = -tB[i]
+            mts[i] = -ts[i]
+        ell = piece_length[p]
+        share = weight * phi[a] * ell
+        for i in range(d):
+            f = share * ts[i]
             force_acc[a, i] += f
             force_acc[b, i] -= f
             fsum[i] += sign * f
-        face = piece_face[p]
-        lh = piece_face_length[p]
+        # the partner's face is its half of the segment
+        lb = 0.5 * math.sqrt((x[ob, 0] - x[b, 0]) ** 2 + (x[ob, 1] - x[b, 1]) ** 2)
+        wa = share / piece_face_length[p]
+        wb = share / lb
+        face_weight[face] += wa
+        face_weight[face_b] += wb
         for i in range(d):
-            face_velocity[face, i] += vsA[i] * ell / lh
-        cover[face] += ell / lh
-        length_sum[a] += ell
-        for i in range(d):
-            velocity_sum[a, i] += vsA[i] * ell
-        traction_sum[a] += tn * ell
-
-
-@njit(cache=True, inline="always")
-def contact_motion(a, v, vstar, n, closing, xdot, d):
-    """Velocity moving a contact node: its contact normal velocity plus the gap-closing rate
-    along n, its own velocity across n (so that its tangential motion stays the one its F
-    equation sees)."""
-    un = closing
-    for i in range(d):
-        un += vstar[a, i] * n[i]
-    for i in range(d):
-        un -= v[a, i] * n[i]
-    for i in range(d):
-        xdot[a, i] = v[a, i] + un * n[i]
+            kA = kinematic_velocity(vA, tA, ts, zpA, i)
+            kB = kinematic_velocity(vB, mtB, mts, zpB, i)
+            face_velocity[face, i] += wa * kA
+            face_velocity[face_b, i] += wb * kB
+            motion_sum[a, i] += share * (kA - v[a, i])
+            motion_sum[b, i] += share * (kB - v[b, i])
+        mode = STICK if stick else SLIP
+        state[a] = mode
+        state[b] = mode
+        length_sum[a] += weight * ell
+        length_sum[b] += weight * ell
+        traction_sum[a] += weight * tn * ell
+        traction_sum[b] += weight * tn * ell
 
 
 @njit(cache=True)
-def settle_nodes(slave, v, dt, weight, stick, gap, normal, length_sum, velocity_sum,
-                 traction_sum, state, vstar, xdot, tstar_n, dim):
-    """Nodes with a piece in contact: their state, mean contact velocity v*, normal contact
-    traction, and the velocity moving them (closing ``weight`` of the gap within the stage)."""
-    d = len(dim)
+def wall_fractions(v, slave, gap, normal, wall_velocity, memory, dt, phi):
+    """Fraction of this step each node spends against the wall (overlap.step_fraction...)."""
+    d = v.shape[1]
     for i in range(slave.shape[0]):
         a = slave[i]
-        total = length_sum[a]
-        if total == 0.0:
-            continue
-        state[a] = STICK if stick else SLIP
+        gdot = 0.0
         for k in range(d):
-            vstar[a, k] = velocity_sum[a, k] / total
-        contact_motion(a, v, vstar, normal[a], weight * gap[a] / dt, xdot, d)
-        tstar_n[a] = traction_sum[a] / total
+            gdot += (wall_velocity[k] - v[a, k]) * normal[a, k]
+        g = gap[a]
+        if memory[a] > 0 or g <= 0.0:
+            phi[a] = 1.0
+        elif gdot < 0.0 and g + gdot * dt < 0.0:
+            phi[a] = 1.0 + g / (gdot * dt)
+        else:
+            phi[a] = 0.0
 
 
 @njit(cache=True)
-def wall_pass(v, F, sig, node_material, table, slave, face_start, face_list, bface_C,
-              face_velocity, cover, node_length, gap, normal, wall_velocity, dt, stick,
-              was_active, faces, state, vstar, xdot, tstar_n, force_acc, fsum, dim):
-    """Nodes of one body against a rigid wall: candidate test, Riemann state of the node's own
-    traction against the wall, its faces that face the wall, forces and motion."""
+def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_list, bface_C, bface_others,
+              normal, wall_velocity, stick, phi, faces, force_acc, fsum, face_weight,
+              face_velocity, state, length_sum, motion_sum, traction_sum, dim):
+    """Nodes of one body against a rigid wall: each of a node's faces that faces the wall
+    meets it with its own face state; the force acts on the face's projection on
+    the wall, the face carries the contact velocity in the F equation for the part phi of
+    the step, and the node moves with it (sums as in piece_states)."""
     d = len(dim)
+    S = local_matrix(d)
+    Fa = local_matrix(d)
+    vA = local_vector(d)
     tA = local_vector(d)
     vt = local_vector(d)
     tt = local_vector(d)
     vs = local_vector(d)
     ts = local_vector(d)
-    vA = local_vector(d)
     n = local_vector(d)
+    N = local_vector(d)
+    scratch = local_vector(d)
     vw = local_vector(d)
     for k in range(d):
         vw[k] = wall_velocity[k]
     for i in range(slave.shape[0]):
         a = slave[i]
+        if phi[a] == 0.0:
+            continue
         load_vector(normal, a, n)
-        load_vector(v, a, vA)
-        gdot = 0.0
-        for k in range(d):
-            gdot -= (v[a, k] - wall_velocity[k]) * n[k]
-        if not is_candidate(gap[a], gdot, dt, was_active[a], node_length[a]):
-            continue
         props = table[node_material[a]]
-        _traction(sig, a, n, tA, d)
-        tn = wall_state(vA, tA, n, props[RHO] * props[CP], props[RHO] * props[CS], vw, stick,
-                        vt, tt, vs, ts)
-        if releases(tn):
-            continue
-        count, length = facing_faces(a, n, F, face_start, face_list, bface_C, faces, 0)
-        for k in range(count):
-            for j in range(d):
-                face_velocity[faces[k], j] = vs[j]
-            cover[faces[k]] = 1.0
-        if length == 0.0:
-            continue
-        state[a] = STICK if stick else SLIP
-        for k in range(d):
-            vstar[a, k] = vs[k]
-        contact_motion(a, v, vstar, n, gap[a] / dt, xdot, d)
-        tstar_n[a] = tn
-        for k in range(d):
-            f = length * ts[k]
-            force_acc[a, k] += f
-            fsum[k] += f
+        count, total = wall_faces(a, n, x, X, face_start, face_list, bface_others, bface_C,
+                                  faces, 0)
+        for j in range(count):
+            face = faces[j]
+            o = bface_others[face, 0]
+            face_state(a, o, v, sigma, vA, S, d)
+            _traction(S, n, tA, d)
+            lc = math.sqrt(bface_C[face, 0] ** 2 + bface_C[face, 1] ** 2)
+            r = area_ratio(F, a, bface_C[face, 0] / lc, bface_C[face, 1] / lc, props, Fa, N,
+                           scratch)
+            tn = wall_state(vA, tA, n, props[RHO] * props[CP] / r, props[RHO] * props[CS] / r,
+                            vw, stick, vt, tt, vs, ts)
+            if releases(tn):
+                continue
+            # the projection of this face on the wall
+            h1 = 0.5 * (x[o, 0] - x[a, 0])
+            h2 = 0.5 * (x[o, 1] - x[a, 1])
+            projected = abs(h2 * n[0] - h1 * n[1])
+            share = phi[a] * projected
+            face_weight[face] += phi[a]
+            for k in range(d):
+                f = share * ts[k]
+                force_acc[a, k] += f
+                fsum[k] += f
+                kv = kinematic_velocity(vA, tA, ts, props[RHO] * props[CP] / r, k)
+                face_velocity[face, k] += phi[a] * kv
+                motion_sum[a, k] += share * (kv - v[a, k])
+            state[a] = STICK if stick else SLIP
+            length_sum[a] += projected
+            traction_sum[a] += tn * projected
 
 
 @njit(cache=True)
-def reset_surface(nodes, faces, state, force_acc, tstar_n, face_velocity, cover,
-                  length_sum, velocity_sum, traction_sum):
+def reset_surface(nodes, faces, state, force_acc, tstar_n, face_weight, face_velocity,
+                  length_sum, motion_sum, traction_sum):
     d = force_acc.shape[1]
     for i in range(nodes.shape[0]):
         a = nodes[i]
@@ -180,28 +259,63 @@ def reset_surface(nodes, faces, state, force_acc, tstar_n, face_velocity, cover,
         traction_sum[a] = 0.0
         for k in range(d):
             force_acc[a, k] = 0.0
-            velocity_sum[a, k] = 0.0
+            motion_sum[a, k] = 0.0
     for k in range(faces.shape[0]):
         face = faces[k]
-        cover[face] = 0.0
+        face_weight[face] = 0.0
         for j in range(d):
             face_velocity[face, j] = 0.0
 
 
 @njit(cache=True)
-def mark_contact_faces(faces, cover, face_active):
-    """Faces touched by a piece in contact leave the free-surface flux to the contact."""
-    for k in range(faces.shape[0]):
-        face_active[faces[k]] = cover[faces[k]] > 0.0
+def settle_nodes(nodes, faces, v, length_sum, motion_sum, traction_sum, face_weight,
+                 face_velocity, xdot, tstar_n):
+    """After all passes: each node in contact moves with
+    its velocity plus the length- and step-weighted mean of (contact velocity - velocity)
+    over its contact, and reports the mean normal contact traction. A face whose summed
+    weight exceeds 1 (the two passes' overlaps of a corner counted twice) is scaled to 1."""
+    d = v.shape[1]
+    for i in range(nodes.shape[0]):
+        a = nodes[i]
+        total = length_sum[a]
+        if total == 0.0:
+            continue
+        for k in range(d):
+            xdot[a, k] = v[a, k] + motion_sum[a, k] / total
+        tstar_n[a] = traction_sum[a] / total
+    for j in range(faces.shape[0]):
+        face = faces[j]
+        w = face_weight[face]
+        if w > 1.0:
+            face_weight[face] = 1.0
+            for k in range(d):
+                face_velocity[face, k] /= w
 
 
 @njit(cache=True)
-def apply_contact(nodes, faces, bface_node, bface_C, face_active, face_velocity, cover, state,
-                  vstar, xdot, force_acc, fixed_mask, fixed_value, force, dF):
-    """Add the contact forces to the momentum equation; faces in contact carry their mean
-    contact velocity in the F equation in place of the free-surface flux. Velocity components
-    prescribed by a boundary condition (e.g. a roller side meeting the contact face at a
-    corner) win over the contact velocity."""
+def first_order_in_contact(nodes, state, flat, grad):
+    """Nodes in contact inside a contact face (``flat``: every boundary face of theirs is on a
+    contact surface) are not reconstructed in the interior fluxes: their one-sided boundary
+    gradient ignores the partner and makes their velocity ring after the first touch.
+    Corner nodes keep their gradient: there it is the free side's, and zeroing it made the
+    corners drift (docs/contact.md)."""
+    for i in range(nodes.shape[0]):
+        a = nodes[i]
+        if state[a] == OPEN or not flat[a]:
+            continue
+        for k in range(grad.shape[1]):
+            for J in range(grad.shape[2]):
+                grad[a, k, J] = 0.0
+
+
+@njit(cache=True)
+def apply_contact(nodes, faces, bface_node, bface_C, face_weight, face_velocity, state, xdot,
+                  force_acc, fixed_mask, fixed_value, force, dF):
+    """Add the contact forces to the momentum equation, and the contact velocities of the
+    faces in contact to the F equation (weighted by their part of the face and the step; the
+    boundary flux keeps the rest). Velocity components prescribed by a boundary condition
+    (e.g. a roller side meeting the contact face at a corner) win over the contact
+    velocity."""
     d = force.shape[1]
     for i in range(nodes.shape[0]):
         a = nodes[i]
@@ -210,18 +324,16 @@ def apply_contact(nodes, faces, bface_node, bface_C, face_active, face_velocity,
         if state[a] != OPEN:
             for k in range(d):
                 if fixed_mask[a, k]:
-                    vstar[a, k] = fixed_value[a, k]
                     xdot[a, k] = fixed_value[a, k]
     for j in range(faces.shape[0]):
         face = faces[j]
-        if not face_active[face]:
+        w = face_weight[face]
+        if w == 0.0:
             continue
         a = bface_node[face]
         for i in range(d):
-            w = face_velocity[face, i] / cover[face]
+            u = face_velocity[face, i]
             if fixed_mask[a, i]:
-                w = fixed_value[a, i]
+                u = w * fixed_value[a, i]
             for J in range(d):
-                dF[a, i, J] += w * bface_C[face, J]
-
-
+                dF[a, i, J] += u * bface_C[face, J]

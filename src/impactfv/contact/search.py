@@ -1,5 +1,5 @@
-"""Contact search (compiled): surface normals and stresses, and for each node of one body the
-closest facing segment of its partner, with the gap and the contact normal.
+"""Contact search (compiled): surface normals, and for each node of one body the closest
+facing segment of its partner, with the gap and the contact normal.
 
 2D: the facets of a surface are segments. A 3D search adds point-to-triangle projection
 here; the driver and the Riemann step do not change.
@@ -10,27 +10,17 @@ import math
 import numpy as np
 from numba import njit
 
-from .. import materials as M
-from ..backends.cpu import load_matrix, local_matrix, point, store_matrix
 from ..geometry.bins import bin_of
-
-cauchy_stress = point(M.cauchy_stress)
 
 
 @njit(cache=True)
-def surface_geometry(x, F, node_material, table, nodes, segs, nrm, sig):
-    """Outward spatial unit normal (mean of the adjacent segments' normals) and Cauchy stress
-    of the surface nodes."""
+def surface_normals(x, nodes, segs, nrm):
+    """Outward spatial unit normal of the surface nodes (mean of the adjacent segments')."""
     d = x.shape[1]
-    Fa = local_matrix(2)  # segments: 2D
-    sa = local_matrix(2)
     for i in range(nodes.shape[0]):
         a = nodes[i]
         for k in range(d):
             nrm[a, k] = 0.0
-        load_matrix(F, a, Fa)
-        cauchy_stress(Fa, table[node_material[a]], sa)
-        store_matrix(sa, sig, a)
     for j in range(segs.shape[0]):
         p = segs[j, 0]
         q = segs[j, 1]
@@ -50,9 +40,8 @@ def surface_geometry(x, F, node_material, table, nodes, segs, nrm, sig):
 @njit(cache=True)
 def closest_segment(a, x, nrm, segs, origin, h, shape, start, items, pad):
     """Closest master segment facing node a within ``pad``: (segment, xi, distance), or
-    (-1, 0, inf). Facing: the segment's outward normal is opposite the node's (within about
-    107 degrees); a node beyond a segment's end by more than a quarter of its length is not
-    projected on it."""
+    (-1, 0, inf). Facing: the segment's outward normal and the node's point towards each
+    other (their dot product is negative). xi in [0, 1] is the closest point's position."""
     best = -1
     best_xi = 0.0
     best_d = np.inf
@@ -68,19 +57,9 @@ def closest_segment(a, x, nrm, segs, origin, h, shape, start, items, pad):
         d1 = x[q, 0] - x[p, 0]
         d2 = x[q, 1] - x[p, 1]
         L2 = d1 * d1 + d2 * d2
-        if (d2 * nrm[a, 0] - d1 * nrm[a, 1]) >= -0.3 * math.sqrt(L2):
+        if d2 * nrm[a, 0] - d1 * nrm[a, 1] >= 0.0:
             continue
-        xi = ((px - x[p, 0]) * d1 + (py - x[p, 1]) * d2) / L2
-        L = math.sqrt(L2)
-        lateral = 0.0
-        if xi < 0.0:
-            lateral = -xi * L
-            xi = 0.0
-        elif xi > 1.0:
-            lateral = (xi - 1.0) * L
-            xi = 1.0
-        if lateral > 0.25 * L:
-            continue  # beyond the end of the master surface
+        xi = min(max(((px - x[p, 0]) * d1 + (py - x[p, 1]) * d2) / L2, 0.0), 1.0)
         cx = x[p, 0] + xi * d1 - px
         cy = x[p, 1] + xi * d2 - py
         dist = math.sqrt(cx * cx + cy * cy)

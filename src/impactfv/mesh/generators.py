@@ -9,7 +9,8 @@ from ..errors import InputError
 from .core import Mesh
 
 #: "right": every cell cut along the diagonal (0,0)-(1,1); "left": along (1,0)-(0,1);
-#: "alternate": the two alternate in a checkerboard (no preferred direction);
+#: "alternate": the two alternate in a checkerboard (no preferred direction), mirrored about
+#: the centre lines so that the mesh is symmetric and every corner is split (see rectangle);
 #: "crossed": four triangles per cell around a centre node.
 DIAGONAL_PATTERNS = ("right", "left", "alternate", "crossed")
 
@@ -43,7 +44,14 @@ def rectangle(origin, size, divisions, pattern: str = "alternate") -> Mesh:
         elif pattern == "left":
             cut_right = np.zeros(len(i), bool)
         else:
-            cut_right = (i + j) % 2 == 0
+            # checkerboard counted from the nearest corner and mirrored into each quadrant:
+            # the mesh is symmetric about both centre lines, and each corner cell is cut
+            # through the corner, so no corner node has a single triangle (a third of the
+            # volume and a three-node gradient, where boundary and contact fluxes meet)
+            mirror_x = i > (nx - 1) / 2
+            mirror_y = j > (ny - 1) / 2
+            from_corner = np.where(mirror_x, nx - 1 - i, i) + np.where(mirror_y, ny - 1 - j, j)
+            cut_right = (from_corner % 2 == 0) ^ mirror_x ^ mirror_y
         t_right = np.concatenate([np.column_stack((n00, n10, n11)), np.column_stack((n00, n11, n01))])
         t_left = np.concatenate([np.column_stack((n00, n10, n01)), np.column_stack((n10, n11, n01))])
         both = np.concatenate([cut_right, cut_right])
@@ -59,6 +67,32 @@ def rectangle(origin, size, divisions, pattern: str = "alternate") -> Mesh:
         "xmin": np.column_stack([left + nx + 1, left]),
     }
     return Mesh(points, tri.astype(np.int64), regions)
+
+
+def disc(centre, radius, rings: int) -> Mesh:
+    """Triangulate the disc of given centre and radius: the centre node and ``rings``
+    concentric rings of 6k equally spaced nodes (k = 1..rings, every other ring turned by
+    half a spacing), joined by their Delaunay triangulation: nearly equilateral triangles of
+    side about radius / rings. The boundary region ``outer`` is the outer ring,
+    counter-clockwise."""
+    from scipy.spatial import Delaunay
+
+    if radius <= 0 or not np.isfinite(radius):
+        raise InputError(f"mesh.radius: expected a positive length, got {radius!r}")
+    if rings < 1:
+        raise InputError(f"mesh.rings: expected a positive integer, got {rings!r}")
+    points = [np.zeros((1, 2))]
+    for k in range(1, rings + 1):
+        theta = 2.0 * np.pi * (np.arange(6 * k) + 0.5 * (k % 2)) / (6 * k)
+        points.append(radius * k / rings * np.column_stack([np.cos(theta), np.sin(theta)]))
+    points = np.vstack(points) + np.asarray(centre, float)
+    tri = Delaunay(points).simplices.astype(np.int64)
+    a, b, c = (points[tri[:, k]] for k in range(3))
+    area = 0.5 * ((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0])
+    tri[area < 0] = tri[area < 0][:, [0, 2, 1]]
+    outer = len(points) - 6 * rings + np.arange(6 * rings)
+    regions = {"outer": np.column_stack([outer, np.roll(outer, -1)])}
+    return Mesh(points, tri, regions)
 
 
 def rectangle_quads(origin, size, divisions):

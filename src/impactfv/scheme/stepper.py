@@ -58,13 +58,13 @@ class FVStepper:
             from ..contact.driver import ContactSystem
             self.contact = ContactSystem(case, m)
             self.contact_state, self.contact_xdot = self.contact.state, self.contact.xdot
-            self.face_in_contact = self.contact.face_active
+            self.face_contact_weight = self.contact.face_weight
             self.contact.end_step(self.x, self.v, self.F)  # initial gaps
         else:
             self.contact = None
             self.contact_state = np.zeros(n, np.int8)
             self.contact_xdot = np.zeros((n, d))
-            self.face_in_contact = np.zeros(len(m.bface_node), bool)
+            self.face_contact_weight = np.zeros(len(m.bface_node))
 
     @property
     def body_names(self) -> list[str]:
@@ -76,8 +76,6 @@ class FVStepper:
         state."""
         m = self.disc
         K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
-        if self.contact is not None:
-            self.contact.stage(self.x, self.v, self.F, self.dt, stage)
         if self.stress_reconstructed:
             K.pack_velocity_and_stress(self.v, self.sigma, self.U, self.dim)
         if self.order == 2:
@@ -88,13 +86,16 @@ class FVStepper:
                 K.limit_gradient(self.U, m.edges, m.half, m.edge_offsets, self.limiter,
                                  self.vmin, self.vmax, self.phi, self.grad, self.dim,
                                  self.components)
+        if self.contact is not None:
+            self.contact.stage(self.x, self.v, self.F, self.sigma, self.grad, self.order == 2,
+                               self.dt, stage)
         K.assemble_rates(self.v, self.F, self.sigma, self.grad, m.node_material, m.material_table,
                          m.edges, m.C, m.C_len, m.half, m.edge_offsets, m.bface_node,
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
                          m.bc_velocity, m.bc_traction, m.fixed_mask, m.fixed_value,
                          self.order == 2,
                          self.stress_reconstructed, self.upwind_geometric,
-                         self.face_in_contact, self.force, self.dF, self.dim)
+                         self.face_contact_weight, self.force, self.dF, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF)
 
@@ -190,7 +191,7 @@ class FVStepper:
         """Everything a restart needs besides the case."""
         arrays = {"v": self.v, "F": self.F, "x": self.x}
         if self.contact is not None:
-            arrays["was_active"] = self.contact.was_active
+            arrays["contact_memory"] = self.contact.memory
         return arrays
 
     def restore(self, arrays) -> None:
@@ -203,4 +204,4 @@ class FVStepper:
             target[:] = arrays[name]
         if self.contact is not None:
             self.contact.end_step(self.x, self.v, self.F)
-            self.contact.was_active[:] = arrays["was_active"]
+            self.contact.memory[:] = arrays["contact_memory"]
