@@ -91,7 +91,8 @@ def test_bar_against_rigid_wall():
     bar = body_momentum(result.bodies["bar"], SEED.density)[0] / (SEED.density * L * W)
     assert bar == pytest.approx(-V0, rel=0.03)
     assert np.nanmin(hist["contact0_gap"]) > -0.01 * L / 100
-    assert np.all(np.diff(hist["total_energy"]) <= 0.0)
+    E = hist["total_energy"]
+    assert np.all(np.diff(E) <= 1e-12 * E[0])  # round-off of threaded sums aside
 
 
 def test_stick_transfers_tangential_momentum_and_slip_does_not():

@@ -139,6 +139,8 @@ class ContactSystem:
         RS.reset_surface(self.surface_nodes, self.faces, self.state, self.force_acc,
                          self.tstar_n, self.face_weight, self.face_velocity, self.length_sum,
                          self.motion_sum, self.traction_sum)
+        if not self._finite(x):
+            return
         self._geometry(x)
         for pair in self.pairs:
             fsum = pair.fsum[stage_index]
@@ -149,6 +151,11 @@ class ContactSystem:
                         self.tstar_n)
         if reconstructed:
             RS.first_order_in_contact(self.surface_nodes, self.state, self.flat, grad)
+
+    def _finite(self, x):
+        """A blown-up state (reported by the stepper's check after the step) has no contact
+        geometry: the search is skipped rather than run on non-finite positions."""
+        return bool(np.isfinite(x[self.surface_nodes]).all())
 
     def _geometry(self, x):
         for pair in self.pairs:
@@ -225,6 +232,8 @@ class ContactSystem:
     def end_step(self, x, v, F):
         """Remember who is in contact; measure the gaps at the new positions."""
         self.memory[self.surface_nodes] = self.state[self.surface_nodes]
+        if not self._finite(x):
+            return
         self._geometry(x)
         scratch = np.zeros(self.disc.dim)
         for pair in self.pairs:

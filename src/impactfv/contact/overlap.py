@@ -16,7 +16,7 @@ from numba import njit
 from ..geometry.bins import bin_of
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def step_fraction_in_contact(g, gdot, dt, remembered):
     """Fraction of the step the node is in contact: 1 if it was in contact at the end of the
     previous step (it stays until the contact would be tensile) or its gap is closed; for a
@@ -29,7 +29,7 @@ def step_fraction_in_contact(g, gdot, dt, remembered):
     return 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def closing_fractions(x, v, slave, partner, partner_xi, gap, normal, segs, memory, dt, phi):
     """Fraction of this step each slave node spends in contact (step_fraction_in_contact),
     from its gap and the rate at which its partner segment approaches it."""
@@ -49,7 +49,7 @@ def closing_fractions(x, v, slave, partner, partner_xi, gap, normal, segs, memor
         phi[a] = step_fraction_in_contact(gap[a], gdot, dt, memory[a] > 0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                    bface_others, bface_C, segs, origin, h, shape, start, items, piece_node,
                    piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
@@ -127,7 +127,7 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
     return count
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def wall_faces(a, n, x, X, face_start, face_list, bface_others, bface_C, faces, count):
     """Dual boundary faces of node a that face the wall (the normal n points into it):
     appended to ``faces``; returns (new count, the total length of their projections on the

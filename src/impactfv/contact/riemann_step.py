@@ -35,7 +35,7 @@ RHO, CP, CS = M.RHO, M.CP, M.CS
 OPEN, STICK, SLIP = 0, 1, 2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def face_state(a, o, v, sigma, vf, sf, d):
     """Velocity and Cauchy stress of node a on its face towards node o: the boundary closure
     (5 u_a + u_o) / 6 of the free-surface flux (docs/contact.md: reconstructed states made
@@ -48,7 +48,7 @@ def face_state(a, o, v, sigma, vf, sf, d):
             sf[j, i] = s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def area_ratio(F, a, N1, N2, props, Fa, N, scratch):
     """da/dA of a face of node a with reference unit normal (N1, N2)."""
     for i in range(2):
@@ -59,7 +59,7 @@ def area_ratio(F, a, N1, N2, props, Fa, N, scratch):
     return face_geometry(Fa, N, props, scratch)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def _traction(S, n, t, d):
     """Cauchy traction S n."""
     for i in range(d):
@@ -69,7 +69,7 @@ def _traction(S, n, t, d):
         t[i] = s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others, segs, segment_faces, phi, count,
                  piece_node, piece_face, piece_partner, piece_segment, piece_length,
                  piece_face_length, piece_normal, weight, sign, stick, force_acc, fsum,
@@ -168,7 +168,7 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
         traction_sum[b] += weight * tn * ell
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def wall_fractions(v, slave, gap, normal, wall_velocity, memory, dt, phi):
     """Fraction of this step each node spends against the wall (overlap.step_fraction...)."""
     d = v.shape[1]
@@ -186,7 +186,7 @@ def wall_fractions(v, slave, gap, normal, wall_velocity, memory, dt, phi):
             phi[a] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_list, bface_C, bface_others,
               normal, wall_velocity, stick, phi, faces, force_acc, fsum, face_weight,
               face_velocity, state, length_sum, motion_sum, traction_sum, dim):
@@ -247,7 +247,7 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
             traction_sum[a] += tn * projected
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def reset_surface(nodes, faces, state, force_acc, tstar_n, face_weight, face_velocity,
                   length_sum, motion_sum, traction_sum):
     d = force_acc.shape[1]
@@ -267,7 +267,7 @@ def reset_surface(nodes, faces, state, force_acc, tstar_n, face_weight, face_vel
             face_velocity[face, j] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def settle_nodes(nodes, faces, v, length_sum, motion_sum, traction_sum, face_weight,
                  face_velocity, xdot, tstar_n):
     """After all passes: each node in contact moves with
@@ -292,7 +292,7 @@ def settle_nodes(nodes, faces, v, length_sum, motion_sum, traction_sum, face_wei
                 face_velocity[face, k] /= w
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def first_order_in_contact(nodes, state, flat, grad):
     """Nodes in contact inside a contact face (``flat``: every boundary face of theirs is on a
     contact surface) are not reconstructed in the interior fluxes: their one-sided boundary
@@ -308,7 +308,7 @@ def first_order_in_contact(nodes, state, flat, grad):
                 grad[a, k, J] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def apply_contact(nodes, faces, bface_node, bface_C, face_weight, face_velocity, state, xdot,
                   force_acc, fixed_mask, fixed_value, force, dF):
     """Add the contact forces to the momentum equation, and the contact velocities of the

@@ -13,7 +13,7 @@ from numba import njit
 from ..geometry.bins import bin_of
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def surface_normals(x, nodes, segs, nrm):
     """Outward spatial unit normal of the surface nodes (mean of the adjacent segments')."""
     d = x.shape[1]
@@ -37,7 +37,7 @@ def surface_normals(x, nodes, segs, nrm):
             nrm[a, 1] /= s
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def closest_segment(a, x, nrm, segs, origin, h, shape, start, items, pad):
     """Closest master segment facing node a within ``pad``: (segment, xi, distance), or
     (-1, 0, inf). Facing: the segment's outward normal and the node's point towards each
@@ -70,7 +70,7 @@ def closest_segment(a, x, nrm, segs, origin, h, shape, start, items, pad):
     return best, best_xi, best_d
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def find_partners(x, slave, nrm, segs, origin, h, shape, start, items, pad, partner,
                   partner_xi, partner_dist, gap, normal):
     """For every slave node: its partner segment (-1 if none within reach), the projection
@@ -102,7 +102,7 @@ def find_partners(x, slave, nrm, segs, origin, h, shape, start, items, pad, part
     return gmin
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def wall_gaps(x, slave, point_on_wall, wall_normal, gap, normal):
     """Gap of every slave node to a rigid plane (normal out of the wall) and the contact
     normal n = -wall_normal; returns the smallest gap."""

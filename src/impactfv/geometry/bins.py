@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _facet_box(x, facets, f, pad):
     d = x.shape[1]
     lo = np.empty(d)
@@ -28,7 +28,7 @@ def _facet_box(x, facets, f, pad):
     return lo, hi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _register(x, facets, pad, lo, h, shape, count, items, fill):
     """Count (fill False: count[c + 1] += 1) or list (fill True, count holding the bin
     starts) each facet in every bin its padded box meets, facets in order."""
@@ -62,7 +62,7 @@ def _register(x, facets, pad, lo, h, shape, count, items, fill):
                 break
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def build_bins(x, facets, pad):
     """Bins of the facets at positions x: returns (origin, h, shape, start, items).
 
@@ -105,7 +105,7 @@ def build_bins(x, facets, pad):
     return lo, h, shape, count, items
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", error_model="numpy")
 def bin_of(point, origin, h, shape):
     """Flat index of the bin containing ``point``, or -1 outside the bins."""
     c = 0
