@@ -5,11 +5,11 @@ sides) on cells of h = 0.4 mm (81 x 16 per bar) instead of 0.2 mm. Measured here
 (roughness = median over loaded nodes of |p - neighbour mean| / rho c_p v0):
 
     method    roughness   contact-phase force (N/m)
-    fv        0.0041      4.876e5
-    fem-t3    0.0152      4.250e5
-    fem-q4md  0.0104      4.678e5
+    fv        0.0025      5.548e5
+    fem-t3    0.0163      4.565e5
+    fem-q4md  0.0106      4.687e5
 
-FV / T3 = 0.27, FV / Q4MD = 0.40 (at h = 0.2 mm: 0.16 and 0.22, docs/comparison.md).
+FV / T3 = 0.15, FV / Q4MD = 0.24 (at h = 0.2 mm: 0.10 and 0.14, docs/comparison.md).
 The driver tests below use a small 10 mm x 2 mm pair of bars.
 """
 
