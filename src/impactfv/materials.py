@@ -103,18 +103,26 @@ def _squared_norm_3d(F):
     return s + (3 - d)
 
 
+def _linear_stress_tensor(F, props, out):
+    """Small-strain stress of the linear elastic law into out (d x d), the same for P and
+    sigma at this order; returns tr(F - I)."""
+    d = F.shape[0]
+    tr = 0.0
+    for i in range(d):
+        tr += F[i, i] - 1.0
+    for i in range(d):
+        for J in range(d):
+            out[i, J] = _linear_stress(F, i, J, tr, props[LAMBDA], props[MU])
+    return tr
+
+
 def first_piola(F, props, P):
     """First Piola-Kirchhoff stress P(F) of the momentum equation (seed eq. 1a), written
     into P (d x d)."""
     d = F.shape[0]
     mu = props[MU]
     if int(props[LAW]) == LINEAR_ELASTIC:
-        tr = 0.0
-        for i in range(d):
-            tr += F[i, i] - 1.0
-        for i in range(d):
-            for J in range(d):
-                P[i, J] = _linear_stress(F, i, J, tr, props[LAMBDA], mu)
+        _linear_stress_tensor(F, props, P)
         return
     J_ = determinant(F)
     a = mu * J_ ** (-2.0 / 3.0)
@@ -157,12 +165,7 @@ def cauchy_stress(F, props, sigma):
     d = F.shape[0]
     mu = props[MU]
     if int(props[LAW]) == LINEAR_ELASTIC:
-        tr = 0.0
-        for i in range(d):
-            tr += F[i, i] - 1.0
-        for i in range(d):
-            for J in range(d):
-                sigma[i, J] = _linear_stress(F, i, J, tr, props[LAMBDA], mu)
+        tr = _linear_stress_tensor(F, props, sigma)
         return props[LAMBDA] * tr if d == 2 else 0.0
     # sigma = mu J^(-5/3) dev(b) + kappa (J - 1) I with b = F F^T (b3 = diag(b, 1) in 2D)
     for i in range(d):

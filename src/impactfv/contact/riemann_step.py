@@ -29,6 +29,7 @@ kinematic_velocity = point(CL.kinematic_velocity)
 wall_state = point(CL.wall_state)
 releases = point(CL.releases)
 face_geometry = point(R.face_geometry)
+face_traction = point(R.face_traction)
 symmetric_index = point(_symmetric_index)
 
 RHO, CP, CS = M.RHO, M.CP, M.CS
@@ -57,16 +58,6 @@ def area_ratio(F, a, N1, N2, props, Fa, N, scratch):
     N[0] = N1
     N[1] = N2
     return face_geometry(Fa, N, props, scratch)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _traction(S, n, t, d):
-    """Cauchy traction S n."""
-    for i in range(d):
-        s = 0.0
-        for J in range(d):
-            s += S[i, J] * n[J]
-        t[i] = s
 
 
 @njit(cache=True, error_model="numpy")
@@ -115,8 +106,8 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
         load_vector(piece_normal, p, c)
         face_state(a, o, v, sigma, vA, SA, d)
         face_state(b, ob, v, sigma, vB, SB, d)
-        _traction(SA, c, tA, d)
-        _traction(SB, c, tB, d)
+        face_traction(SA, c, 1.0, tA)
+        face_traction(SB, c, 1.0, tB)
         pa = table[node_material[a]]
         pb = table[node_material[b]]
         # area ratios of the two faces (reference normals: the slave face's, the segment's)
@@ -221,7 +212,7 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
             face = faces[j]
             o = bface_others[face, 0]
             face_state(a, o, v, sigma, vA, S, d)
-            _traction(S, n, tA, d)
+            face_traction(S, n, 1.0, tA)
             lc = math.sqrt(bface_C[face, 0] ** 2 + bface_C[face, 1] ** 2)
             r = area_ratio(F, a, bface_C[face, 0] / lc, bface_C[face, 1] / lc, props, Fa, N,
                            scratch)
