@@ -65,6 +65,11 @@ class Discretisation:
     fixed_value: np.ndarray     # (n, d)
     v0: np.ndarray              # (n, d) initial velocity
     edge_offsets: np.ndarray = None  # (nblocks + 2,) edges grouped by node block, then cross
+    node_edge_start: np.ndarray = None  # (n + 1,) each node's edges in the node_* lists
+    node_neighbour: np.ndarray = None   # (2m,) the other end b of each edge of node a
+    node_C: np.ndarray = None           # (2m, d) its area vector seen from a (a -> b)
+    node_half: np.ndarray = None        # (2m, d) X_mid - X_a
+    bface_start: np.ndarray = None      # (n + 1,) each node's dual boundary faces (sorted)
     body_start: np.ndarray = None    # (nbodies + 1,) first node of each body
     bodies: list[BodyLayout] = field(default_factory=list)
 
@@ -155,13 +160,17 @@ def discretise(case: Case) -> Discretisation:
         fixed_value[nodes, c] = value
     v0 = cat["v0"]
     v0[fixed_mask] = fixed_value[fixed_mask]
+    half = 0.5 * (X[edges[:, 1]] - X[edges[:, 0]])
+    node_edge_start, node_neighbour, node_C, node_half = node_edge_lists(edges, C, half, offset)
     # boundary faces sorted by node for locality of the scatter
     order = np.argsort(cat["bface_node"], kind="stable")
     return Discretisation(
         X=X, node_material=cat["node_material"], material_table=table,
         body_of_node=cat["body_of_node"], volume=cat["volume"],
         node_length=cat["node_length"], edges=edges, C=C, C_len=np.linalg.norm(C, axis=1),
-        half=0.5 * (X[edges[:, 1]] - X[edges[:, 0]]),
+        half=half, node_edge_start=node_edge_start, node_neighbour=node_neighbour,
+        node_C=node_C, node_half=node_half,
+        bface_start=np.searchsorted(cat["bface_node"][order], np.arange(offset + 1)),
         bface_node=cat["bface_node"][order].astype(np.int64),
         bface_others=np.ascontiguousarray(cat["bface_others"][order], dtype=np.int64),
         bface_C=cat["bface_C"][order], bface_facet=cat["bface_facet"][order],
@@ -170,6 +179,21 @@ def discretise(case: Case) -> Discretisation:
         bc_traction=np.array(bc_traction, float), fixed_mask=fixed_mask,
         fixed_value=fixed_value, v0=v0, edge_offsets=edge_offsets,
         body_start=np.array([b.start for b in layouts] + [offset], np.int64), bodies=layouts)
+
+
+def node_edge_lists(edges, C, half, n_nodes):
+    """Each node's edges in one list (CSR), for loops that gather over nodes instead of
+    scattering over edges: start offsets (n + 1), the neighbour, and the area vector and
+    midpoint offset X_mid - X_a seen from the node (as stored from an edge's first node,
+    negated from its second)."""
+    ends = np.concatenate([edges[:, 0], edges[:, 1]])
+    order = np.argsort(ends, kind="stable")
+    start = np.zeros(n_nodes + 1, np.int64)
+    np.cumsum(np.bincount(ends, minlength=n_nodes), out=start[1:])
+    neighbour = np.concatenate([edges[:, 1], edges[:, 0]])[order]
+    return (start, np.ascontiguousarray(neighbour, dtype=np.int64),
+            np.ascontiguousarray(np.concatenate([C, -C])[order]),
+            np.ascontiguousarray(np.concatenate([half, -half])[order]))
 
 
 def partition_edges(edges, C, n_nodes, n_blocks=None):

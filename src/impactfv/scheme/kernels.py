@@ -68,105 +68,76 @@ def pack_velocity_and_stress(v, sigma, U, dim):
                 U[a, d + symmetric_index(i, j, d)] = sigma[a, i, j]
 
 
-@njit(cache=True, inline="always")
-def _gradient_edge(e, v, edges, C, grad, vmin, vmax, d, m):
-    a = edges[e, 0]
-    b = edges[e, 1]
-    for i in range(m):
-        u = 0.5 * (v[a, i] + v[b, i])
-        for J in range(d):
-            grad[a, i, J] += u * C[e, J]
-            grad[b, i, J] -= u * C[e, J]
-        # neighbour range for the limiter, in the same sweep
-        if v[b, i] < vmin[a, i]:
-            vmin[a, i] = v[b, i]
-        if v[b, i] > vmax[a, i]:
-            vmax[a, i] = v[b, i]
-        if v[a, i] < vmin[b, i]:
-            vmin[b, i] = v[a, i]
-        if v[a, i] > vmax[b, i]:
-            vmax[b, i] = v[a, i]
-
-
 @njit(cache=True, parallel=True)
-def gradient(v, edges, C, edge_offsets, bface_node, bface_others, bface_C, closure,
-             volume, grad, vmin, vmax, dim, components):
+def gradient(v, node_edge_start, node_neighbour, node_C, bface_start, bface_others, bface_C,
+             closure, volume, grad, vmin, vmax, dim, components):
     """Green-Gauss nodal gradient grad[a, i, J] = d v_i / d X_J (exact for linear fields) of
     every component i of the nodal field v (n, m), and the range [vmin, vmax] of each
     component over the node and its neighbours. ``components`` is a tuple of m zeros (a
-    compile-time m, like ``dim``)."""
+    compile-time m, like ``dim``).
+
+    A gather over nodes: grad_a = (sum over edges ab of (v_a + v_b)/2 C_ab + sum over the
+    node's dual boundary faces of the closure state times S/d) / Omega_a, with node_C the
+    area vector seen from a (node_edge_start / node_neighbour list a's edges, bface_start its
+    boundary faces). Each node writes only its own rows: no race, no edge blocks."""
     d = len(dim)
     m = len(components)
     own, denominator = closure
-    n = v.shape[0]
-    for a in prange(n):
-        for i in range(m):
-            vmin[a, i] = v[a, i]
-            vmax[a, i] = v[a, i]
-            for J in range(d):
-                grad[a, i, J] = 0.0
-    nb = edge_offsets.shape[0] - 2
-    for k in prange(nb):
-        for e in range(edge_offsets[k], edge_offsets[k + 1]):
-            _gradient_edge(e, v, edges, C, grad, vmin, vmax, d, m)
-    for e in range(edge_offsets[nb], edge_offsets[nb + 1]):
-        _gradient_edge(e, v, edges, C, grad, vmin, vmax, d, m)
-    for h in range(bface_node.shape[0]):
-        a = bface_node[h]
-        for i in range(m):
-            u = own * v[a, i]
-            for o in bface_others[h]:
-                u += v[o, i]
-            u /= denominator
-            for J in range(d):
-                grad[a, i, J] += u * bface_C[h, J]
-    for a in prange(n):
+    for a in prange(v.shape[0]):
         inv = 1.0 / volume[a]
         for i in range(m):
+            u = v[a, i]
+            lo = u
+            hi = u
+            for J in range(d):
+                grad[a, i, J] = 0.0
+            for k in range(node_edge_start[a], node_edge_start[a + 1]):
+                ub = v[node_neighbour[k], i]
+                mean = 0.5 * (u + ub)
+                for J in range(d):
+                    grad[a, i, J] += mean * node_C[k, J]
+                lo = min(lo, ub)
+                hi = max(hi, ub)
+            for h in range(bface_start[a], bface_start[a + 1]):
+                face = own * u
+                for o in bface_others[h]:
+                    face += v[o, i]
+                face /= denominator
+                for J in range(d):
+                    grad[a, i, J] += face * bface_C[h, J]
             for J in range(d):
                 grad[a, i, J] *= inv
-
-
-@njit(cache=True, inline="always")
-def _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d, m):
-    for side in range(2):
-        a = edges[e, side]
-        sgn = 1.0 if side == 0 else -1.0
-        for i in range(m):
-            change = 0.0
-            for J in range(d):
-                change += grad[a, i, J] * half[e, J]
-            change *= sgn
-            # a change below 1e-10 of the local range needs no limiting; without this
-            # tolerance a round-off sized change at an extremum would switch phi from 1 to 0
-            if abs(change) <= 1e-10 * (vmax[a, i] - vmin[a, i]):
-                continue
-            f = limiter_factor(kind, v[a, i], vmin[a, i], vmax[a, i], change)
-            if f < phi[a, i]:
-                phi[a, i] = f
+            vmin[a, i] = lo
+            vmax[a, i] = hi
 
 
 @njit(cache=True, parallel=True)
-def limit_gradient(v, edges, half, edge_offsets, kind, vmin, vmax, phi, grad, dim,
-                   components):
+def limit_gradient(v, node_edge_start, node_half, kind, vmin, vmax, grad, dim, components):
     """Scale each component's gradient by the smallest limiter factor over the node's edges,
-    so that the reconstructed midpoint values stay within the neighbours' range."""
+    so that the reconstructed midpoint values stay within the neighbours' range. A gather
+    over nodes: node a's edges are node_edge_start[a] .. node_edge_start[a + 1] - 1 with
+    midpoint offsets node_half (X_mid - X_a), so each node reads its gradient once and
+    writes it once."""
     d = len(dim)
     m = len(components)
-    n = v.shape[0]
-    for a in prange(n):
+    for a in prange(v.shape[0]):
         for i in range(m):
-            phi[a, i] = 1.0
-    nb = edge_offsets.shape[0] - 2
-    for k in prange(nb):
-        for e in range(edge_offsets[k], edge_offsets[k + 1]):
-            _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d, m)
-    for e in range(edge_offsets[nb], edge_offsets[nb + 1]):
-        _limit_edge(e, v, edges, half, kind, vmin, vmax, phi, grad, d, m)
-    for a in prange(n):
-        for i in range(m):
+            u, lo, hi = v[a, i], vmin[a, i], vmax[a, i]
+            # a change below 1e-10 of the local range needs no limiting; without this
+            # tolerance a round-off sized change at an extremum would switch phi from 1 to 0
+            tolerance = 1e-10 * (hi - lo)
+            phi = 1.0
+            for k in range(node_edge_start[a], node_edge_start[a + 1]):
+                change = 0.0
+                for J in range(d):
+                    change += grad[a, i, J] * node_half[k, J]
+                if abs(change) <= tolerance:
+                    continue
+                f = limiter_factor(kind, u, lo, hi, change)
+                if f < phi:
+                    phi = f
             for J in range(d):
-                grad[a, i, J] *= phi[a, i]
+                grad[a, i, J] *= phi
 
 
 @njit(cache=True, inline="always")

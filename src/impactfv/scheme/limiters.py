@@ -15,8 +15,11 @@ IDS = {"none": NONE, "barth_jespersen": BARTH_JESPERSEN, "venkatakrishnan": VENK
 
 def barth_jespersen(dmax, d):
     """phi = min(1, dmax / d): the largest factor that creates no new extremum (the TVD
-    shock capturing of the seed's abstract)."""
-    return min(1.0, dmax / d)
+    shock capturing of the seed's abstract). dmax and d have the same sign, so the
+    comparison gives the same result as min without a division where no limiting is needed."""
+    if abs(d) <= abs(dmax):
+        return 1.0
+    return dmax / d
 
 
 def venkatakrishnan(dmax, d, eps2):
