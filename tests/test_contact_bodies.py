@@ -1,0 +1,127 @@
+"""Blocks with free sides through impact and rebound (docs/contact.md, "Blocks with free
+sides"): a block on a rigid wall face-on and corner-first, a small block hitting the middle
+of a larger block's face, and two blocks of different materials. Each run goes on after the
+bodies separate."""
+
+import numpy as np
+import pytest
+from conftest import COPPER
+
+from impactfv import load_case, run
+from impactfv.mesh.dual import median_dual
+from impactfv.validation.refinement import ALUMINIUM, STEEL
+
+H = 0.2e-3          # cell size of every mesh below
+
+
+def rect(origin, size):
+    return {"generator": "rectangle", "origin": origin, "size": size, "pattern": "alternate",
+            "divisions": [round(size[0] / H), round(size[1] / H)]}
+
+
+def momentum(body, density):
+    omega = median_dual(body["reference_points"], body["triangles"]).volumes
+    return density * (omega[:, None] * body["velocity"]).sum(axis=0)
+
+
+def areas(body):
+    p = body["points"][body["triangles"]]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def run_case(bodies, materials, contact, end_time):
+    case = {"run": {"end_time": end_time, "output_interval": end_time},
+            "material": materials, "body": bodies, "contact": [contact]}
+    return run(load_case(case))
+
+
+def check_common(result, penetration=0.01):
+    """Runs to the end, energy never rises, no deeper penetration than ``penetration`` h,
+    no triangle turned inside out, and the contact is released before the end."""
+    hist = result.history
+    E = hist["total_energy"]
+    assert np.all(np.diff(E) <= 1e-12 * E[0])
+    assert np.nanmin(hist["contact0_gap"]) > -penetration * H
+    for body in result.bodies.values():
+        assert areas(body).min() > 0.0
+    force = np.hypot(hist["contact0_fx"], hist["contact0_fy"])
+    touching = np.flatnonzero(force > 0)
+    assert len(touching) and touching[-1] < len(force) - 10        # released again
+    return hist["time"][touching[0]]
+
+
+@pytest.mark.parametrize("model", ["slip", "stick"])
+@pytest.mark.parametrize("tilt", [0.0, 30.0])
+def test_block_bounces_off_a_wall(model, tilt):
+    """A 4 mm copper block falls at 50 m/s on a wall, face-on (tilt 0) or on a wall tilted by
+    30 degrees (a corner touches first and the block turns). In slip the wall takes no
+    tangential momentum; the normal momentum reverses."""
+    c, s = np.cos(np.radians(tilt)), np.sin(np.radians(tilt))
+    normal, tangent = np.array([-s, c]), np.array([c, s])
+    gap = 0.1e-3
+    # the wall passes gap below the block's lowest corner (x = 2 mm when tilted)
+    wall_point = [2e-3, -gap / c] if tilt else [0.0, -gap]
+    block = {"name": "block", "material": COPPER["name"], "velocity": [0.0, -50.0],
+             "mesh": rect([-2e-3, 0.0], [4e-3, 4e-3])}
+    wall = {"bodies": ["block"], "model": model,
+            "wall": {"point": wall_point, "normal": normal.tolist()}}
+    result = run_case([block], [COPPER], wall, 80e-6 if tilt == 0 else 100e-6)
+    t_touch = check_common(result)
+    assert t_touch == pytest.approx(gap / (50.0 * c), rel=0.05)
+    hist = result.history
+    p0 = np.array([hist["momentum_x"][0], hist["momentum_y"][0]])
+    p1 = np.array([hist["momentum_x"][-1], hist["momentum_y"][-1]])
+    if model == "slip":
+        assert p1 @ tangent == pytest.approx(p0 @ tangent, abs=1e-10 * np.abs(p0).max())
+    assert p1 @ normal > 0.3 * abs(p0 @ normal)                # bounced back
+
+
+@pytest.mark.parametrize("model", ["slip", "stick"])
+def test_small_block_on_a_larger_block(model):
+    """A 2 mm block hits the middle of an 8 mm block at rest: its corners press into the
+    other's face. Momentum is exchanged equal and opposite, energy never rises.
+
+    Known shortfall (docs/contact.md): the small block's corner sinks into the larger face by
+    1.8-3.9% of h (h = 0.2 and 0.1 mm, slip and stick; the depth falls like h), more than
+    the 1% of h reached everywhere else; the test holds it below 5% of h."""
+    small = {"name": "small", "material": COPPER["name"], "velocity": [0.0, -50.0],
+             "mesh": rect([-1e-3, 0.1e-3], [2e-3, 2e-3])}
+    big = {"name": "big", "material": COPPER["name"], "velocity": [0.0, 0.0],
+           "mesh": rect([-4e-3, -4e-3], [8e-3, 4e-3])}
+    result = run_case([small, big], [COPPER], {"bodies": ["small", "big"], "model": model},
+                      30e-6)
+    check_common(result, penetration=0.05)
+    rho = COPPER["density"]
+    ps, pb = (momentum(result.bodies[k], rho) for k in ("small", "big"))
+    p0 = rho * 2e-3 * 2e-3 * np.array([0.0, -50.0])
+    assert ps + pb == pytest.approx(p0, abs=1e-10 * np.abs(p0).max())
+    assert ps[1] > 0.0 > pb[1]                                  # the small block bounced
+
+
+@pytest.mark.parametrize("model", ["slip", "stick"])
+def test_blocks_of_different_materials(model):
+    """Steel (top) and aluminium (bottom) blocks with free sides meet at 2 x 100 m/s: the
+    first-touch contact force is the acoustic value of seed eq. (5) over the width, momentum
+    is exchanged equal and opposite, and they separate."""
+    steel = {"name": "steel", "material": "steel", "velocity": [0.0, -100.0],
+             "mesh": rect([-2e-3, 0.02e-3], [4e-3, 2e-3])}
+    al = {"name": "al", "material": "aluminium", "velocity": [0.0, 100.0],
+          "mesh": rect([-2e-3, -2e-3], [4e-3, 2e-3])}
+    result = run_case([steel, al], [STEEL, ALUMINIUM],
+                      {"bodies": ["steel", "al"], "model": model}, 3e-6)
+    check_common(result)
+    from impactfv.materials import Material
+
+    za, zb = (Material.from_entry(m).p_impedance for m in (STEEL, ALUMINIUM))
+    hist = result.history
+    first = np.flatnonzero(hist["contact0_fy"] != 0)[1:4]       # the first full steps
+    acoustic = 200.0 * za * zb / (za + zb) * 4e-3
+    assert np.all(np.abs(np.abs(hist["contact0_fy"][first]) / acoustic - 1) < 0.05)
+    ps = momentum(result.bodies["steel"], STEEL["density"])
+    pa = momentum(result.bodies["al"], ALUMINIUM["density"])
+    p0 = 4e-3 * 2e-3 * 100.0 * np.array([0.0, ALUMINIUM["density"] - STEEL["density"]])
+    assert ps + pa == pytest.approx(p0, abs=1e-10 * 4e-3 * 2e-3 * 100 * STEEL["density"])
+    # each block lost momentum towards the other: steel slowed, aluminium reversed
+    assert ps[1] > -100.0 * STEEL["density"] * 8e-6
+    assert pa[1] < 0.0
