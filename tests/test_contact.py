@@ -212,7 +212,9 @@ model = "stick"
     path = tmp_path / "overlap.toml"
     path.write_text(text)
     check = run_cli("check", path)
-    assert check.returncode == 0 and "PROBLEM" in check.stdout and "overlap" in check.stdout
+    # check prints its whole report, then fails like run would (exit 2, one line)
+    assert check.returncode == 2 and "PROBLEM" in check.stdout and "overlap" in check.stdout
+    assert len(check.stderr.strip().splitlines()) == 1 and "overlap" in check.stderr
     proc = run_cli("run", path, "-o", tmp_path / "out")
     assert proc.returncode == 2
     assert len(proc.stderr.strip().splitlines()) == 1 and "overlap" in proc.stderr

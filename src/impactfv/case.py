@@ -31,14 +31,17 @@ class _Strict(BaseModel):
 
 
 class RunSettings(_Strict):
-    end_time: float = Field(gt=0, description="simulated time to reach, s")
+    end_time: float = Field(ge=1e-15, description="simulated time to reach, s (a smaller "
+                            "one is below any stable time step of a solid)")
     cfl: float = Field(0.4, gt=0, le=1, description="Courant number of the time step")
     output_interval: Optional[float] = Field(None, gt=0, description="snapshot cadence, s")
     order: Literal[1, 2] = 2
     limiter: Literal["none", "barth_jespersen", "venkatakrishnan"] = "barth_jespersen"
     method: Literal["fv", "fem-t3", "fem-q4md"] = "fv"
     geometric_flux: Literal["central", "upwind"] = "upwind"
-    max_steps: int = Field(10_000_000, gt=0, description="safety cap on the number of steps")
+    max_steps: Optional[int] = Field(None, gt=0, description="cap on the number of steps; "
+                                     "unset: 10,000,000, and a run estimated to need more is "
+                                     "refused before it starts")
 
     @field_validator("end_time", "cfl", "output_interval")
     @classmethod
@@ -158,8 +161,11 @@ class WallSpec(_Strict):
         values = (*self.point, *self.normal, *self.velocity)
         if not all(map(math.isfinite, values)):
             raise ValueError("point, normal and velocity must be finite")
-        if math.hypot(*self.normal) == 0.0:
+        length = math.hypot(*self.normal)
+        if length == 0.0:
             raise ValueError("normal must not be zero")
+        # stored as a unit vector: a tiny but valid length (1e-170) must not underflow later
+        self.normal = tuple(n / length for n in self.normal)
         return self
 
 
@@ -182,6 +188,13 @@ class ContactSpec(_Strict):
 
 class CaseSpec(_Strict):
     title: Optional[str] = None
+
+    @field_validator("title")
+    @classmethod
+    def _printable_title(cls, value):
+        if value is not None and not value.isprintable():
+            raise ValueError("must not contain control characters (newlines, escape codes)")
+        return value
     run: RunSettings
     material: list[MaterialSpec] = Field(min_length=1)
     body: list[BodySpec] = Field(min_length=1)
@@ -236,6 +249,7 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
         except UnicodeDecodeError:
             raise InputError(f"{path}: not a UTF-8 text file") from None
         base = Path(base_dir) if base_dir is not None else path.resolve().parent
+    _refuse_booleans(data, name)
     try:
         spec = CaseSpec.model_validate(data)
     except ValidationError as exc:
@@ -259,6 +273,18 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
                 raise InputError(f"{name}: contact[{k}].regions: unknown region {region!r} "
                                  f"(the bodies have: {', '.join(sorted(known)) or 'none'})")
     return case
+
+
+def _refuse_booleans(data, source: str, path: str = ""):
+    """No key of a case takes true/false, and pydantic would read them as 1/0."""
+    items = data.items() if isinstance(data, dict) else \
+        enumerate(data) if isinstance(data, (list, tuple)) else ()
+    for key, value in items:
+        where = f"{path}[{key}]" if isinstance(key, int) else f"{path}.{key}" if path else key
+        if isinstance(value, bool):
+            raise InputError(f"{source}: {where}: expected a number or text, got "
+                             f"{str(value).lower()} (no setting takes a boolean)")
+        _refuse_booleans(value, source, where)
 
 
 def _check_names(spec: CaseSpec, source: str):

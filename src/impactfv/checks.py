@@ -17,6 +17,14 @@ def _stepper_doubles_per_node(d):
 
 
 def check_report(case: Case) -> str:
+    return check_case(case)[0]
+
+
+def check_case(case: Case) -> tuple[str, list[str]]:
+    """The report of ``impactfv check`` and the problems in it that ``run`` would refuse."""
+    from .pipeline.run import step_count_problem
+
+    problems = []
     disc = discretise(case)
     lines = [f"case: {case.source}" + (f"  ({case.title})" if case.title else "")]
     for body in case.bodies:
@@ -39,6 +47,9 @@ def check_report(case: Case) -> str:
     nbytes += 8 * _stepper_doubles_per_node(disc.dim) * disc.n_nodes
     lines.append(f"time step: {dt:.4e} s (cfl {case.run.cfl}) at the start; about {steps} steps "
                  f"to {case.run.end_time:.4e} s ({2 * steps} Runge-Kutta stages)")
+    if (problem := step_count_problem(case, dt)):
+        problems.append(problem)
+        lines.append(f"PROBLEM: {problem} (run will refuse this case)")
     lines.append(f"scheme: {case.run.method}, order {case.run.order}, limiter "
                  f"{case.run.limiter}")
     lines.append(f"memory: about {nbytes / 2**20:.1f} MiB for the state and work arrays "
@@ -49,8 +60,9 @@ def check_report(case: Case) -> str:
         for k, c in enumerate(case.contacts):
             partner = "a rigid wall" if c.wall is not None else repr(c.bodies[1])
             lines.append(f"contact[{k}]: {c.bodies[0]!r} with {partner}, model {c.model}")
-        problems = find_overlaps(case)
-        lines += [f"PROBLEM: {p} (run will refuse this case)" for p in problems]
-        if not problems:
+        overlaps = find_overlaps(case)
+        lines += [f"PROBLEM: {p} (run will refuse this case)" for p in overlaps]
+        if not overlaps:
             lines.append("no bodies overlap at the start")
-    return "\n".join(lines)
+        problems += overlaps
+    return "\n".join(lines), problems

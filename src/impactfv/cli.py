@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 from .version import __version__
-from .errors import InputError, SimulationError
+from .errors import InputError, SimulationError, printable
 from .pipeline import Interrupted
 
 
@@ -45,18 +45,18 @@ def main(argv=None) -> int:
     except InputError as exc:
         if args.debug:
             raise
-        print(f"impactfv: error: {exc}", file=sys.stderr)
+        print(f"impactfv: error: {printable(exc)}", file=sys.stderr)
         return 2
     except SimulationError as exc:
         if args.debug:
             raise
-        print(f"impactfv: simulation failed: {exc}", file=sys.stderr)
+        print(f"impactfv: simulation failed: {printable(exc)}", file=sys.stderr)
         return 3
     except KeyboardInterrupt:
         print("impactfv: interrupted", file=sys.stderr)
         return 130
     except Interrupted as exc:
-        print(f"impactfv: {exc}; continue with --restart", file=sys.stderr)
+        print(f"impactfv: {printable(exc)}; continue with --restart", file=sys.stderr)
         return 128 + int(exc.signum)
     return 0
 
@@ -90,7 +90,7 @@ def _run(args) -> int:
     print(f"{s['status']}: {s['steps']} steps to t = {s['end_time']:.4e} s, {s['nodes']} nodes, "
           f"{s['wall_time_s']:.2f} s wall, "
           f"{(s['node_stage_updates_per_second'] or 0) / 1e6:.2f} M node-stage updates/s")
-    print(f"results in {out}/ (history.csv, summary.json, fields.pvd)")
+    print(f"results in {printable(out)}/ (history.csv, summary.json, fields.pvd)")
     return 0
 
 
@@ -105,10 +105,14 @@ def _check_output_dir(out: Path):
 
 def _check(args) -> int:
     from .case import load_case
-    from .checks import check_report
+    from .checks import check_case
 
     case = load_case(args.case)
-    print(check_report(case))
+    report, problems = check_case(case)
+    print("\n".join(printable(line) for line in report.splitlines()))
+    if problems:
+        # what run would refuse is an input error here too
+        raise InputError(f"{case.source}: {problems[0]}")
     return 0
 
 

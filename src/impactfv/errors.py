@@ -14,3 +14,9 @@ class SimulationError(RuntimeError):
     def __init__(self, message, step=None, time=None, body=None, node=None):
         super().__init__(message)
         self.step, self.time, self.body, self.node = step, time, body, node
+
+
+def printable(text) -> str:
+    """``text`` with control characters (newlines, terminal escape codes) shown as escapes,
+    so that a file name or title can never break a one-line message or the terminal."""
+    return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in str(text))

@@ -15,12 +15,19 @@ import numpy as np
 
 from .errors import InputError
 
+# name -> (function, number of arguments). Each is called with exactly that many
+# positional arguments, so no numpy keyword or extra positional argument (``out``, which
+# would write into the caller's arrays) can be reached.
 _FUNCTIONS = {
-    "sin": np.sin, "cos": np.cos, "tan": np.tan, "exp": np.exp, "log": np.log,
-    "sqrt": np.sqrt, "abs": np.abs, "tanh": np.tanh, "sinh": np.sinh, "cosh": np.cosh,
-    "arcsin": np.arcsin, "arccos": np.arccos, "arctan": np.arctan, "arctan2": np.arctan2,
-    "heaviside": lambda a: np.heaviside(a, 0.5), "minimum": np.minimum, "maximum": np.maximum,
+    "sin": (np.sin, 1), "cos": (np.cos, 1), "tan": (np.tan, 1), "exp": (np.exp, 1),
+    "log": (np.log, 1), "sqrt": (np.sqrt, 1), "abs": (np.abs, 1), "tanh": (np.tanh, 1),
+    "sinh": (np.sinh, 1), "cosh": (np.cosh, 1), "arcsin": (np.arcsin, 1),
+    "arccos": (np.arccos, 1), "arctan": (np.arctan, 1), "arctan2": (np.arctan2, 2),
+    "heaviside": (lambda a: np.heaviside(a, 0.5), 1), "minimum": (np.minimum, 2),
+    "maximum": (np.maximum, 2),
 }
+MAX_LENGTH = 1000       # characters of one expression
+MAX_DEPTH = 50          # nesting of operations and calls
 _CONSTANTS = {"pi": np.pi, "e": np.e}
 _BINARY = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul,
            ast.Div: operator.truediv, ast.Pow: operator.pow}
@@ -30,10 +37,17 @@ _VARIABLES = ("x", "y")
 
 def compile_expression(text: str, key: str):
     """Check ``text`` and return a function f(x, y) -> array. Raises InputError naming ``key``."""
+    if len(text) > MAX_LENGTH:
+        raise InputError(f"{key}: expression of {len(text)} characters; at most {MAX_LENGTH} "
+                         "are accepted")
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except (SyntaxError, ValueError, RecursionError, MemoryError):
-        raise InputError(f"{key}: cannot parse expression {text!r}") from None
+        raise InputError(f"{key}: cannot parse expression {_short(text)}") from None
+    depth = _depth(tree.body)
+    if depth > MAX_DEPTH:
+        raise InputError(f"{key}: expression nested {depth} deep; at most {MAX_DEPTH} levels "
+                         "are accepted")
     _check(tree.body, key, text)
 
     def evaluate(x, y):
@@ -42,7 +56,7 @@ def compile_expression(text: str, key: str):
                 value = _eval(tree.body, {"x": x, "y": y})
             return np.broadcast_to(np.asarray(value, dtype=float), np.shape(x)).copy()
         except (TypeError, ValueError, ArithmeticError) as exc:
-            raise InputError(f"{key}: cannot evaluate {text!r} ({exc})") from None
+            raise InputError(f"{key}: cannot evaluate {_short(text)} ({exc})") from None
 
     return evaluate
 
@@ -51,10 +65,10 @@ def _check(node, key, text):
     allowed = ", ".join(sorted(_FUNCTIONS))
     if isinstance(node, ast.Constant):
         if not isinstance(node.value, (int, float)) or isinstance(node.value, bool):
-            raise InputError(f"{key}: only numbers are allowed as constants in {text!r}")
+            raise InputError(f"{key}: only numbers are allowed as constants in {_short(text)}")
     elif isinstance(node, ast.Name):
         if node.id not in _VARIABLES and node.id not in _CONSTANTS:
-            raise InputError(f"{key}: unknown name {node.id!r} in {text!r} "
+            raise InputError(f"{key}: unknown name {node.id!r} in {_short(text)} "
                              "(expected x, y, pi, e)")
     elif isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
         _check(node.left, key, text)
@@ -63,10 +77,14 @@ def _check(node, key, text):
         _check(node.operand, key, text)
     elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
             and node.func.id in _FUNCTIONS and not node.keywords:
+        arity = _FUNCTIONS[node.func.id][1]
+        if len(node.args) != arity or any(isinstance(a, ast.Starred) for a in node.args):
+            raise InputError(f"{key}: {node.func.id}() takes {arity} argument"
+                             f"{'s' if arity > 1 else ''}, got {len(node.args)} in {_short(text)}")
         for arg in node.args:
             _check(arg, key, text)
     else:
-        raise InputError(f"{key}: unsupported syntax in {text!r} (allowed: numbers, x, y, pi, "
+        raise InputError(f"{key}: unsupported syntax in {_short(text)} (allowed: numbers, x, y, pi, "
                          f"e, + - * / **, and the functions {allowed})")
 
 
@@ -79,4 +97,24 @@ def _eval(node, variables):
         return _BINARY[type(node.op)](_eval(node.left, variables), _eval(node.right, variables))
     if isinstance(node, ast.UnaryOp):
         return _UNARY[type(node.op)](_eval(node.operand, variables))
-    return _FUNCTIONS[node.func.id](*[_eval(a, variables) for a in node.args])
+    function, arity = _FUNCTIONS[node.func.id]
+    return function(*[_eval(a, variables) for a in node.args[:arity]])
+
+
+def _depth(root) -> int:
+    """Nesting depth of an expression tree, walked without recursion (a chain of thousands
+    of unary minus signs must not exhaust Python's stack)."""
+    deepest, stack = 0, [(root, 1)]
+    while stack:
+        node, level = stack.pop()
+        deepest = max(deepest, level)
+        if deepest > MAX_DEPTH:
+            break
+        stack.extend((child, level + 1) for child in ast.iter_child_nodes(node))
+    return deepest
+
+
+def _short(text: str) -> str:
+    """The expression for a one-line message: repr (no raw control characters), clipped."""
+    shown = repr(text)
+    return shown if len(shown) <= 80 else shown[:77] + "..."

@@ -13,6 +13,14 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 
+def _follow_umask(path):
+    """Give a finished temporary file the mode a plain open() would have (0666 minus the
+    umask): mkstemp creates files 0600, which colleagues on a shared machine cannot read."""
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(path, 0o666 & ~mask)
+
+
 def atomic_replace(path: Path, write):
     """Write ``path`` through ``write(file handle)`` into a temporary file, then rename."""
     path = Path(path)
@@ -23,6 +31,7 @@ def atomic_replace(path: Path, write):
             write(fh)
             fh.flush()
             os.fsync(fh.fileno())
+        _follow_umask(tmp)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -82,6 +91,7 @@ class SnapshotWriter:
         os.close(fd)
         try:
             meshio.write(tmp, mesh, file_format="vtu", binary=True, compression=None)
+            _follow_umask(tmp)
             os.replace(tmp, target)
         except BaseException:
             if os.path.exists(tmp):

@@ -32,6 +32,20 @@ from .result import Interrupted, RunResult
 from .signals import SignalFlag
 
 
+DEFAULT_MAX_STEPS = 10_000_000
+
+
+def step_count_problem(case: Case, dt: float) -> str | None:
+    """A message when the run would need more steps than the default cap (estimated from the
+    first stable time step ``dt``) and ``run.max_steps`` was not set; else None."""
+    steps = case.run.end_time / dt if dt > 0 else math.inf
+    if case.run.max_steps is None and steps > DEFAULT_MAX_STEPS:
+        return (f"run: about {steps:.3g} steps of {dt:.3g} s to end_time = "
+                f"{case.run.end_time:.3g} s (cfl {case.run.cfl}), more than the "
+                f"{DEFAULT_MAX_STEPS:,} allowed unless run.max_steps is set")
+    return None
+
+
 @dataclass
 class Schedule:
     """When a run stops and when it writes: ``output_interval`` defaults to end_time / 10."""
@@ -61,9 +75,14 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     overlaps = find_overlaps(case) if case.contacts else []
     if overlaps:
         raise InputError(f"{case.source}: {overlaps[0]}")
-    schedule = Schedule(case.run.end_time, case.run.output_interval, case.run.max_steps)
     wall_start = _time.perf_counter()
     stepper = make_stepper(case)
+    schedule = Schedule(case.run.end_time, case.run.output_interval,
+                        case.run.max_steps or DEFAULT_MAX_STEPS)
+    if not restart:
+        problem = step_count_problem(case, stepper.stable_dt())
+        if problem:
+            raise InputError(f"{case.source}: {problem}")
     return run_stepper(stepper, schedule, output_dir, progress=progress, restart=restart,
                        checkpoint_every=checkpoint_every, handle_signals=handle_signals,
                        fingerprint=case_fingerprint(case), title=case.title,

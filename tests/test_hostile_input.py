@@ -1,0 +1,157 @@
+"""What a hostile or careless user tries, through the CLI as they would run it: every bad
+input gives exit 2 and one line naming the key or file, never a traceback, and nothing on
+disk is lost (docs/failures.md)."""
+
+import json
+import os
+import stat
+
+import pytest
+from conftest import material_toml, run_cli
+
+BAR = """title = "bar"
+[run]
+end_time = {end_time}
+{run_extra}
+""" + material_toml() + """[[body]]
+name = "bar"
+material = "copper"
+velocity = [{vx}, 0.0]
+mesh = {{ generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], divisions = [8, 2] }}
+"""
+
+
+def write_case(tmp_path, name="case.toml", end_time="2e-7", run_extra="", vx="1.0", extra=""):
+    path = tmp_path / name
+    path.write_text(BAR.format(end_time=end_time, run_extra=run_extra, vx=vx) + extra)
+    return path
+
+
+def assert_input_error(proc, *words):
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("impactfv: error: "), proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    for word in words:
+        assert word in lines[0], (word, lines[0])
+    return lines[0]
+
+
+# -------------------------------------------------------------- class 1: expressions
+
+@pytest.mark.parametrize("expression,words", [
+    ("0*maximum(x, 1000*x, x)", ["maximum() takes 2 arguments, got 3"]),
+    ("sin(x, x)", ["sin() takes 1 argument, got 2"]),
+    ("minimum(x)", ["minimum() takes 2 arguments, got 1"]),
+    ("-" * 900 + "x", ["nested", "at most 50"]),
+    ("sin(" * 60 + "x" + ")" * 60, ["nested", "at most 50"]),
+    ("-" * 2000 + "x", ["characters", "at most 1000"]),
+    ("+".join(["x"] * 600), ["characters", "at most 1000"]),
+], ids=["out-argument", "extra-argument", "missing-argument", "minus-chain", "deep-calls",
+        "long-minus-chain", "long-sum"])
+def test_expressions_cannot_reach_numpy_arguments_or_exhaust_the_stack(tmp_path, expression,
+                                                                        words):
+    path = write_case(tmp_path, vx=f'"{expression}"')
+    for command in ("check", "run"):
+        proc = run_cli(command, path, "-o", tmp_path / "out") if command == "run" else \
+            run_cli(command, path)
+        assert_input_error(proc, "body[0].velocity.x", *words)
+    assert not (tmp_path / "out" / "history.csv").exists()
+
+
+def test_two_argument_functions_still_work(tmp_path):
+    path = write_case(tmp_path, vx='"maximum(x, 0.001) + arctan2(y, 1.0)"')
+    proc = run_cli("run", path, "-o", tmp_path / "out", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+
+
+# -------------------------------------------------------------- class 7: small holes
+
+@pytest.mark.parametrize("run_extra,key", [("order = true", "run.order"),
+                                           ("cfl = false", "run.cfl"),
+                                           ("max_steps = true", "run.max_steps")])
+def test_booleans_are_not_numbers(tmp_path, run_extra, key):
+    proc = run_cli("check", write_case(tmp_path, run_extra=run_extra))
+    assert_input_error(proc, key, "boolean")
+
+
+def test_boolean_inside_a_list_is_refused(tmp_path):
+    path = tmp_path / "case.toml"
+    path.write_text(write_case(tmp_path).read_text().replace("divisions = [8, 2]",
+                                                             "divisions = [8, true]"))
+    assert_input_error(run_cli("check", path), "body[0].mesh.divisions[1]", "boolean")
+
+
+def test_title_with_terminal_escape_codes_is_refused(tmp_path):
+    path = tmp_path / "case.toml"
+    path.write_text(write_case(tmp_path).read_text().replace(
+        'title = "bar"', 'title = "bar\\u001b[2J\\u001b[31mred"'))
+    line = assert_input_error(run_cli("check", path), "title", "control characters")
+    assert "\x1b" not in line
+
+
+def test_file_name_with_a_newline_stays_on_one_line(tmp_path):
+    proc = run_cli("check", tmp_path / "bad\nname\x1b[31m.toml")
+    line = assert_input_error(proc, "case file not found", "bad\\nname\\x1b[31m.toml")
+    assert "\x1b" not in line
+
+
+def test_tiny_wall_normal_still_stops_the_body(tmp_path):
+    """A wall normal of length 1e-170 is a valid direction: the wall must stop the bar."""
+    wall = """[[contact]]
+bodies = ["bar"]
+wall = { point = [0.0041, 0.0], normal = [-1e-170, 0.0] }
+"""
+    path = write_case(tmp_path, end_time="8e-6", vx="50.0", extra=wall)
+    proc = run_cli("run", path, "-o", tmp_path / "out", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    lines = (tmp_path / "out" / "history.csv").read_text().splitlines()
+    header = lines[0].split(",")
+    column = {k: [float(row.split(",")[i]) for row in lines[1:]] for i, k in enumerate(header)}
+    px, gap = column["momentum_x"], column["contact0_gap"]
+    assert px[-1] < 0.5 * px[0]                 # the wall pushed back
+    assert min(gap) > -0.01 * 0.0005            # and nothing passed through it
+
+
+# -------------------------------------------------------------- class 9: file permissions
+
+@pytest.mark.parametrize("umask", [0o022, 0o077])
+def test_output_files_follow_the_umask(tmp_path, umask):
+    path = write_case(tmp_path)
+    out = tmp_path / "out"
+    proc = run_cli("run", path, "-o", out, "--no-progress", "--checkpoint-every", "1e-7",
+                   preexec_fn=lambda: os.umask(umask))
+    assert proc.returncode == 0, proc.stderr
+    files = [p for p in out.rglob("*") if p.is_file()]
+    names = {p.name for p in files}
+    assert {"history.csv", "summary.json", "fields.pvd", "fields_0000.vtu"} <= names
+    assert any(p.suffix == ".npz" for p in files)
+    for p in files:
+        assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~umask, p
+
+
+# -------------------------------------------------------------- class 5 and 10: check and run agree
+
+@pytest.mark.parametrize("end_time,run_extra", [("2e-7", "cfl = 1e-300"),
+                                                ("1e300", ""),
+                                                ("5e-324", "")])
+def test_runs_that_cannot_finish_are_refused_before_they_start(tmp_path, end_time, run_extra):
+    path = write_case(tmp_path, end_time=end_time, run_extra=run_extra)
+    if end_time == "5e-324":
+        assert_input_error(run_cli("check", path), "run.end_time", "greater than or equal")
+        assert_input_error(run_cli("run", path, "-o", tmp_path / "out"), "run.end_time")
+        return
+    check = run_cli("check", path)
+    assert "PROBLEM" in check.stdout
+    assert_input_error(check, "steps", "max_steps")
+    proc = run_cli("run", path, "-o", tmp_path / "out", "--no-progress")
+    assert_input_error(proc, "steps", "max_steps")
+    assert not (tmp_path / "out" / "history.csv").exists()
+
+
+def test_an_explicit_max_steps_lets_a_long_run_stop_early(tmp_path):
+    path = write_case(tmp_path, end_time="1e300", run_extra="max_steps = 5")
+    proc = run_cli("run", path, "-o", tmp_path / "out", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert (summary["status"], summary["steps"]) == ("stopped at max_steps", 5)
