@@ -155,3 +155,42 @@ def test_an_explicit_max_steps_lets_a_long_run_stop_early(tmp_path):
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert (summary["status"], summary["steps"]) == ("stopped at max_steps", 5)
+
+
+# -------------------------------------------------------------- class 6: exit 2, not 1
+
+@pytest.mark.parametrize("old,new", [("youngs_modulus = 585000000.0", "youngs_modulus = 1.7e308"),
+                                     ("density = 8930.0", "density = 1e-320")])
+def test_extreme_but_finite_material_numbers(tmp_path, old, new):
+    path = tmp_path / "case.toml"
+    text = write_case(tmp_path).read_text()
+    assert old in text
+    path.write_text(text.replace(old, new))
+    for args in (("check", path), ("run", path, "-o", tmp_path / "out")):
+        assert_input_error(run_cli(*args), "material[0]", "wave speed")
+
+
+def test_unreadable_case_file_is_an_input_error(tmp_path, monkeypatch):
+    from pathlib import Path
+
+    from impactfv import InputError, load_case
+
+    path = write_case(tmp_path)
+
+    def refuse(self, *args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+    monkeypatch.setattr(Path, "read_text", refuse)
+    with pytest.raises(InputError, match="cannot read the case file .Permission denied"):
+        load_case(path)
+
+
+def test_output_piped_into_a_reader_that_stops(tmp_path):
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "impactfv.cli", "check",
+                             str(write_case(tmp_path))],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()                       # like `impactfv check case.toml | head -0`
+    err = proc.stderr.read().decode()
+    assert proc.wait() == 141 and "Traceback" not in err and err == ""

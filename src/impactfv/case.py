@@ -65,6 +65,21 @@ class MaterialSpec(_Strict):
     youngs_modulus: float = Field(gt=0, allow_inf_nan=False)
     poisson_ratio: float = Field(gt=-1.0, lt=0.5, allow_inf_nan=False)
 
+    @model_validator(mode="after")
+    def _representable(self):
+        # E = 1.7e308 is finite, but its Lame constants and wave speed are not (or a tiny
+        # density makes c_p overflow): refuse what the time step cannot be computed from
+        m = Material(self.name, self.model, self.density, self.youngs_modulus,
+                     self.poisson_ratio)
+        try:
+            speed_and_impedance = (m.p_wave_speed, m.p_impedance)
+        except (OverflowError, ZeroDivisionError, ValueError):
+            speed_and_impedance = (math.inf,)
+        if not all(math.isfinite(v) and v > 0 for v in speed_and_impedance):
+            raise ValueError("youngs_modulus, density and poisson_ratio give no finite wave "
+                             "speed and impedance (values too extreme for double precision)")
+        return self
+
 
 class MeshSpec(_Strict):
     generator: Optional[Literal["rectangle", "disc"]] = None
@@ -248,6 +263,9 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
             raise InputError(f"{path}: invalid TOML ({exc})") from None
         except UnicodeDecodeError:
             raise InputError(f"{path}: not a UTF-8 text file") from None
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read the case file "
+                             f"({exc.strerror or exc})") from None
         base = Path(base_dir) if base_dir is not None else path.resolve().parent
     _refuse_booleans(data, name)
     try:

@@ -1,12 +1,13 @@
 """Command line: ``impactfv run | check | compare``.
 
 Exit codes: 0 success, 2 input error (one line, no traceback), 3 failed simulation,
-130/143 interrupted.
+130/143 interrupted, 141 the output pipe was closed by its reader.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -55,6 +56,12 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("impactfv: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of our output went away (`impactfv check case.toml | head -1`): stop
+        # quietly like a tool killed by SIGPIPE; results already written stay as they are
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141
     except Interrupted as exc:
         print(f"impactfv: {printable(exc)}; continue with --restart", file=sys.stderr)
         return 128 + int(exc.signum)
