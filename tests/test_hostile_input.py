@@ -194,3 +194,36 @@ def test_output_piped_into_a_reader_that_stops(tmp_path):
     proc.stdout.close()                       # like `impactfv check case.toml | head -0`
     err = proc.stderr.read().decode()
     assert proc.wait() == 141 and "Traceback" not in err and err == ""
+
+
+# -------------------------------------------------------------- class 4: meshes that are not bodies
+
+def mesh_case(tmp_path, mesh_name):
+    path = tmp_path / "case.toml"
+    path.write_text(write_case(tmp_path).read_text().replace(
+        'mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], '
+        'divisions = [8, 2] }', f'mesh = {{ file = "{mesh_name}" }}'))
+    return path
+
+
+@pytest.mark.parametrize("flip", [False, True])
+def test_folded_mesh_is_refused(tmp_path, flip):
+    import meshio
+    import numpy as np
+
+    # a unit square of two triangles, plus a third triangle on edge (0, 1) folded back over
+    # the first (its apex inside it): the edge has both its triangles on one side
+    points = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0.6, 0.3]], float) * 1e-3
+    cells = np.array([[0, 1, 2], [0, 2, 3], [1, 0, 4] if flip else [0, 1, 4]])
+    meshio.write(tmp_path / "folded.vtu", meshio.Mesh(points, [("triangle", cells)]))
+    path = mesh_case(tmp_path, "folded.vtu")
+    for args in (("check", path), ("run", path, "-o", tmp_path / "out")):
+        assert_input_error(run_cli(*args), "folded.vtu", "folds over itself", "edge (0, 1)")
+
+
+@pytest.mark.parametrize("content", [b"garbage", b"<?xml version='1.0'?><VTKFile>",
+                                     b"\x00\x01\x02" * 100])
+def test_malformed_vtu_mesh_is_an_input_error(tmp_path, content):
+    (tmp_path / "bad.vtu").write_bytes(content)
+    path = mesh_case(tmp_path, "bad.vtu")
+    assert_input_error(run_cli("check", path), "bad.vtu", "cannot read mesh")

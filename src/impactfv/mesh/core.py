@@ -100,7 +100,9 @@ def validate_and_orient(mesh: Mesh, source: str) -> Mesh:
     if not used.all():
         raise InputError(f"{source}: {int((~used).sum())} node(s) belong to no triangle, "
                          f"first is node {int(np.flatnonzero(~used)[0])}")
-    _, counts = np.unique(edge_keys(directed_edges(tri)), return_counts=True)
+    directed = directed_edges(tri)
+    keys = edge_keys(directed)
+    _, counts = np.unique(keys, return_counts=True)
     if counts.max() > 2:
         raise InputError(f"{source}: {int((counts > 2).sum())} edge(s) shared by more than two "
                          "triangles (the mesh is not a manifold)")
@@ -110,6 +112,18 @@ def validate_and_orient(mesh: Mesh, source: str) -> Mesh:
     if same.any():
         raise InputError(f"{source}: {int(same.sum())} duplicated node(s) at the same "
                          "position (merge them so the triangles connect)")
+    # now all counter-clockwise: the two triangles of an interior edge run along it in
+    # opposite directions; the same direction means both lie on one side (a fold, where
+    # triangles overlap and the body would get their mass twice)
+    order = np.argsort(keys, kind="stable")
+    pair = np.flatnonzero(keys[order][1:] == keys[order][:-1])
+    forward = directed[:, 0] < directed[:, 1]
+    folded = pair[forward[order][pair] == forward[order][pair + 1]]
+    if len(folded):
+        a, b = sorted(directed[order[folded[0]]].tolist())
+        raise InputError(f"{source}: the mesh folds over itself: {len(folded)} interior edge(s) "
+                         f"have both triangles on the same side, first is edge ({a}, {b}) "
+                         "(inverted triangles overlapping their neighbours)")
     mesh.cells = tri
     # re-orient region edges like the boundary edges they are
     boundary = boundary_facets(tri)

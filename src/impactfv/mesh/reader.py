@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 from pathlib import Path
 
 import numpy as np
@@ -21,10 +23,14 @@ def read_mesh(path: str | Path) -> Mesh:
     path = Path(path)
     if not path.is_file():
         raise InputError(f"{path}: mesh file not found")
+    said = io.StringIO()
     try:
-        m = meshio.read(str(path))
-    except Exception as exc:  # meshio raises many types; all mean the same to a user
-        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        with contextlib.redirect_stderr(said):
+            m = meshio.read(str(path))
+    except (Exception, SystemExit) as exc:  # meshio raises many types, and some readers
+        # print a message and call sys.exit on malformed files; all mean the same to a user
+        text = str(exc) if not isinstance(exc, SystemExit) else said.getvalue()
+        first = text.strip().splitlines()[0] if text.strip() else type(exc).__name__
         raise InputError(f"{path}: cannot read mesh ({first})") from None
     points = np.asarray(m.points, dtype=float)
     if points.ndim != 2 or points.shape[1] < 2:
