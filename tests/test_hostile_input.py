@@ -227,3 +227,50 @@ def test_malformed_vtu_mesh_is_an_input_error(tmp_path, content):
     (tmp_path / "bad.vtu").write_bytes(content)
     path = mesh_case(tmp_path, "bad.vtu")
     assert_input_error(run_cli("check", path), "bad.vtu", "cannot read mesh")
+
+
+# -------------------------------------------------------------- class 2: one run per folder
+
+def test_a_second_run_into_a_busy_folder_is_refused(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".impactfv.lock").write_text(f"{os.getpid()}\n")    # a live process holds it
+    (out / "history.csv").write_text("precious\n")
+    proc = run_cli("run", write_case(tmp_path), "-o", out, "--no-progress")
+    assert_input_error(proc, str(out), "another impactfv run")
+    assert (out / "history.csv").read_text() == "precious\n"   # nothing touched
+    assert (out / ".impactfv.lock").exists()
+
+
+def test_a_lock_left_by_a_dead_process_is_taken_over(tmp_path):
+    import subprocess
+    import sys
+
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / ".impactfv.lock").write_text(f"{dead.pid}\n")
+    proc = run_cli("run", write_case(tmp_path), "-o", out, "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    assert not (out / ".impactfv.lock").exists()               # released at the end
+
+
+def test_a_new_run_leaves_no_files_of_the_old_one(tmp_path):
+    out = tmp_path / "out"
+    first = write_case(tmp_path, name="first.toml", end_time="4e-7",
+                       run_extra="output_interval = 2e-8")
+    assert run_cli("run", first, "-o", out, "--no-progress", "--checkpoint-every",
+                   "1e-7").returncode == 0
+    assert len(list(out.glob("fields_*.vtu"))) == 21
+    (out / ".history.csv.abc.tmp").write_text("half written by a killed run")
+    second = write_case(tmp_path, name="second.toml", end_time="2e-7")
+    assert run_cli("run", second, "-o", out, "--no-progress").returncode == 0
+    frames = sorted(p.name for p in out.glob("fields_*.vtu"))
+    pvd = (out / "fields.pvd").read_text()
+    assert frames == [f"fields_{k:04d}.vtu" for k in range(11)]
+    assert all(name in pvd for name in frames)
+    assert not list(out.glob("checkpoints/*.npz"))              # the old run's are gone
+    assert not list(out.glob(".*.tmp"))
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["end_time"] == pytest.approx(2e-7)

@@ -25,6 +25,7 @@ from ..version import __version__
 from ..case import Case
 from ..errors import InputError, SimulationError
 from ..io.checkpoint import case_fingerprint, load_newest_checkpoint, save_checkpoint
+from ..io.folder import OutputFolder
 from ..io.writers import SnapshotWriter, write_history_csv, write_summary
 from .history import History
 from .progress import progress_bar
@@ -93,7 +94,18 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
                 restart: bool = False, checkpoint_every: float | None = None,
                 handle_signals: bool = False, fingerprint: str = "", title: str | None = None,
                 wall_start: float | None = None) -> RunResult:
-    """Run ``stepper`` to ``schedule.end_time``; see :func:`run` for the options."""
+    """Run ``stepper`` to ``schedule.end_time``; see :func:`run` for the options. The output
+    folder, if any, is locked for the run (io.folder.OutputFolder)."""
+    args = (stepper, schedule, output_dir, progress, restart, checkpoint_every, handle_signals,
+            fingerprint, title, wall_start)
+    if output_dir is None:
+        return _run_stepper(*args)
+    with OutputFolder(output_dir, fresh=not restart):
+        return _run_stepper(*args)
+
+
+def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_every,
+                 handle_signals, fingerprint, title, wall_start) -> RunResult:
     if (restart or checkpoint_every or handle_signals) and output_dir is None:
         raise InputError("restart and checkpoints need an output folder")
     end = schedule.end_time
