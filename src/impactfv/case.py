@@ -10,7 +10,7 @@ import difflib
 import math
 import tomllib
 from pathlib import Path
-from typing import Any, Literal, Optional, Union, get_args, get_origin
+from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origin
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .errors import InputError
 from .expr import compile_expression
 from .materials import Material
-from .mesh.generators import DIAGONAL_PATTERNS, disc, rectangle
+from .mesh.generators import DIAGONAL_PATTERNS, box, disc, rectangle
 from .mesh.reader import read_mesh
 from .mesh.core import Mesh, validate_and_orient
 
@@ -28,6 +28,12 @@ METHODS = ("fv", "fem-t3", "fem-q4md")
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", arbitrary_types_allowed=True)
+
+
+#: a point or vector of the case: 2 components in 2D, 3 in 3D (the mesh decides, and
+#: load_case checks every vector against it)
+Vector = Annotated[list[float], Field(min_length=2, max_length=3)]
+Counts = Annotated[list[int], Field(min_length=2, max_length=3)]
 
 
 class RunSettings(_Strict):
@@ -82,10 +88,10 @@ class MaterialSpec(_Strict):
 
 
 class MeshSpec(_Strict):
-    generator: Optional[Literal["rectangle", "disc"]] = None
-    origin: Optional[tuple[float, float]] = None
-    size: Optional[tuple[float, float]] = None
-    divisions: Optional[tuple[int, int]] = None
+    generator: Optional[Literal["rectangle", "disc", "box"]] = None
+    origin: Optional[Vector] = None
+    size: Optional[Vector] = None
+    divisions: Optional[Counts] = None
     pattern: str = "alternate"
     centre: Optional[tuple[float, float]] = None
     radius: Optional[float] = Field(None, allow_inf_nan=False)
@@ -95,16 +101,23 @@ class MeshSpec(_Strict):
     @model_validator(mode="after")
     def _one_source(self):
         if (self.generator is None) == (self.file is None):
-            raise ValueError("give either generator = \"rectangle\" or \"disc\", or "
-                             "file = \"path\"")
-        if self.generator == "rectangle":
+            raise ValueError("give either generator = \"rectangle\", \"box\" or \"disc\", "
+                             "or file = \"path\"")
+        if self.generator in ("rectangle", "box"):
+            d, count = (2, "two") if self.generator == "rectangle" else (3, "three")
             for key in ("origin", "size", "divisions"):
-                if getattr(self, key) is None:
-                    raise ValueError(f"rectangle needs {key}")
+                value = getattr(self, key)
+                if value is None:
+                    raise ValueError(f"{self.generator} needs {key}")
+                if len(value) != d:
+                    raise ValueError(f"{self.generator} takes {key} of {d} components, got "
+                                     f"{len(value)}")
+            if not all(map(math.isfinite, self.origin)):
+                raise ValueError("origin must be finite")
             if min(self.size) <= 0 or not all(map(math.isfinite, self.size)):
-                raise ValueError("size must be two positive lengths")
+                raise ValueError(f"size must be {count} positive lengths")
             if min(self.divisions) < 1:
-                raise ValueError("divisions must be two positive integers")
+                raise ValueError(f"divisions must be {count} positive integers")
             if self.pattern not in DIAGONAL_PATTERNS:
                 raise ValueError(f"pattern must be one of {', '.join(DIAGONAL_PATTERNS)}")
         if self.generator == "disc":
@@ -121,23 +134,25 @@ class MeshSpec(_Strict):
 class VelocityComponents(_Strict):
     x: Optional[float] = Field(None, allow_inf_nan=False)
     y: Optional[float] = Field(None, allow_inf_nan=False)
+    z: Optional[float] = Field(None, allow_inf_nan=False)
 
     def components(self, dim: int) -> tuple:
         """The prescribed value of each of the ``dim`` components (None: not prescribed)."""
-        return (self.x, self.y)[:dim]
+        return (self.x, self.y, self.z)[:dim]
 
 
 class BoundarySpec(_Strict):
     region: str
     velocity: Optional[VelocityComponents] = None
-    traction: Optional[tuple[float, float]] = None
+    traction: Optional[Vector] = None
 
     @model_validator(mode="after")
     def _one_condition(self):
         if self.velocity is None and self.traction is None:
             raise ValueError("give velocity = { x = ..., y = ... } or traction = [tx, ty]")
-        if self.velocity is not None and self.velocity.x is None and self.velocity.y is None:
-            raise ValueError("velocity needs at least one of x, y")
+        if self.velocity is not None and all(
+                c is None for c in (self.velocity.x, self.velocity.y, self.velocity.z)):
+            raise ValueError("velocity needs at least one of x, y, z")
         if self.traction is not None and not all(map(math.isfinite, self.traction)):
             raise ValueError("traction must be finite")
         return self
@@ -155,24 +170,27 @@ class BodySpec(_Strict):
     def _velocity(cls, value):
         if callable(value):
             return value
-        if isinstance(value, (list, tuple)) and len(value) == 2:
+        if isinstance(value, (list, tuple)) and len(value) in (2, 3):
             for item in value:
                 if isinstance(item, bool) or not isinstance(item, (int, float, str)):
                     raise ValueError("each component must be a number or an expression string")
                 if isinstance(item, (int, float)) and not math.isfinite(item):
                     raise ValueError("components must be finite")
             return tuple(value)
-        raise ValueError("expected [vx, vy] (numbers or expressions of x and y) "
-                         "or, from Python, a callable of the (n, 2) reference points")
+        raise ValueError("expected [vx, vy] (numbers or expressions of x and y; [vx, vy, vz] "
+                         "of x, y, z in 3D) or, from Python, a callable of the (n, d) "
+                         "reference points")
 
 
 class WallSpec(_Strict):
-    point: tuple[float, float]
-    normal: tuple[float, float]
-    velocity: tuple[float, float] = (0.0, 0.0)
+    point: Vector
+    normal: Vector
+    velocity: Optional[Vector] = None
 
     @model_validator(mode="after")
     def _normal(self):
+        if self.velocity is None:
+            self.velocity = [0.0] * len(self.point)
         values = (*self.point, *self.normal, *self.velocity)
         if not all(map(math.isfinite, values)):
             raise ValueError("point, normal and velocity must be finite")
@@ -180,7 +198,7 @@ class WallSpec(_Strict):
         if length == 0.0:
             raise ValueError("normal must not be zero")
         # stored as a unit vector: a tiny but valid length (1e-170) must not underflow later
-        self.normal = tuple(n / length for n in self.normal)
+        self.normal = [n / length for n in self.normal]
         return self
 
 
@@ -274,15 +292,26 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
         raise InputError(_one_line(exc, name)) from None
     case = Case(spec, base, name)
     _check_names(spec, name)
+    dim = None
     for i, b in enumerate(spec.body):
         mesh = _build_mesh(b.mesh, base, f"{name}: body[{i}].mesh")
+        if dim is None:
+            dim = mesh.dim
+        elif mesh.dim != dim:
+            raise InputError(f"{name}: body[{i}].mesh: a {mesh.dim}D mesh in a case whose "
+                             f"first body is {dim}D (all bodies must have the same dimension)")
+        _check_lengths(b, i, dim, name)
         for j, bc in enumerate(b.boundary):
             if bc.region not in mesh.regions:
                 raise InputError(f"{name}: body[{i}].boundary[{j}].region: unknown region "
                                  f"{bc.region!r} (the mesh has: "
                                  f"{', '.join(sorted(mesh.regions)) or 'none'})")
-        velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity")
+        velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity", dim)
         case.bodies.append(Body(b, case.materials[b.material], mesh, velocity))
+    for k, c in enumerate(spec.contact):
+        if c.wall is not None:
+            for key in ("point", "normal", "velocity"):
+                _check_length(getattr(c.wall, key), dim, f"{name}: contact[{k}].wall.{key}")
     meshes = {b.name: b.mesh for b in case.bodies}
     for k, c in enumerate(spec.contact):
         known = set().union(*(meshes[n].regions for n in c.bodies))
@@ -291,6 +320,23 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
                 raise InputError(f"{name}: contact[{k}].regions: unknown region {region!r} "
                                  f"(the bodies have: {', '.join(sorted(known)) or 'none'})")
     return case
+
+
+def _check_length(vector, dim: int, key: str):
+    if vector is not None and len(vector) != dim:
+        raise InputError(f"{key}: expected {dim} components for a {dim}D mesh, got "
+                         f"{len(vector)}")
+
+
+def _check_lengths(body: BodySpec, i: int, dim: int, source: str):
+    """Every vector of a body has as many components as its mesh has dimensions."""
+    if not callable(body.velocity):
+        _check_length(body.velocity, dim, f"{source}: body[{i}].velocity")
+    for j, bc in enumerate(body.boundary):
+        key = f"{source}: body[{i}].boundary[{j}]"
+        _check_length(bc.traction, dim, key + ".traction")
+        if bc.velocity is not None and dim == 2 and bc.velocity.z is not None:
+            raise InputError(f"{key}.velocity.z: a 2D mesh has no z component")
 
 
 def _refuse_booleans(data, source: str, path: str = ""):
@@ -330,6 +376,9 @@ def _build_mesh(spec: MeshSpec, base: Path, key: str) -> Mesh:
     if spec.generator == "rectangle":
         mesh = rectangle(spec.origin, spec.size, spec.divisions, spec.pattern)
         source = key
+    elif spec.generator == "box":
+        mesh = box(spec.origin, spec.size, spec.divisions)
+        source = key
     elif spec.generator == "disc":
         mesh = disc(spec.centre, spec.radius, spec.rings)
         source = key
@@ -342,7 +391,7 @@ def _build_mesh(spec: MeshSpec, base: Path, key: str) -> Mesh:
     return validate_and_orient(mesh, source)
 
 
-def _velocity_function(value, key):
+def _velocity_function(value, key, dim=2):
     if callable(value):
         def evaluate(points):
             try:
@@ -355,14 +404,15 @@ def _velocity_function(value, key):
             return out
         return evaluate
     parts = []
-    for c, item in zip("xy", value):
+    names = "xyz"[:dim]
+    for c, item in zip(names, value):
         if isinstance(item, str):
-            parts.append(compile_expression(item, f"{key}.{c}"))
+            parts.append(compile_expression(item, f"{key}.{c}", tuple(names)))
         else:
-            parts.append(lambda x, y, _v=float(item): np.full(np.shape(x), _v))
+            parts.append(lambda *x, _v=float(item): np.full(np.shape(x[0]), _v))
 
     def evaluate(points):
-        out = np.column_stack([f(points[:, 0], points[:, 1]) for f in parts])
+        out = np.column_stack([f(*points.T) for f in parts])
         if not np.all(np.isfinite(out)):
             raise InputError(f"{key}: the expression gives non-finite values on the mesh")
         return out

@@ -30,15 +30,22 @@ def check_case(case: Case) -> tuple[str, list[str]]:
     for body in case.bodies:
         q = body.mesh.quality()
         mat = body.material
-        lines.append(f"body {body.name!r}: {q['nodes']} nodes, {q['triangles']} triangles, "
-                     f"area {q['area']:.6g} m^2")
+        if body.mesh.dim == 2:
+            lines.append(f"body {body.name!r}: {q['nodes']} nodes, {q['triangles']} triangles, "
+                         f"area {q['area']:.6g} m^2")
+            angle = f"min angle {q['min_angle_deg']:.1f} deg"
+        else:
+            lines.append(f"body {body.name!r}: {q['nodes']} nodes, {q['tetrahedra']} "
+                         f"tetrahedra, volume {q['volume']:.6g} m^3")
+            angle = f"min dihedral angle {q['min_dihedral_deg']:.1f} deg"
         lines.append(f"  edges {q['edge_length_min']:.4g} .. {q['edge_length_max']:.4g} m, "
-                     f"max aspect ratio {q['aspect_ratio_max']:.3g}, "
-                     f"min angle {q['min_angle_deg']:.1f} deg")
+                     f"max aspect ratio {q['aspect_ratio_max']:.3g}, {angle}")
         lines.append(f"  material {mat.name!r} ({mat.law}): c_p = {mat.p_wave_speed:.2f} m/s, "
                      f"c_s = {mat.s_wave_speed:.2f} m/s, impedance rho c_p = "
                      f"{mat.p_impedance:.4g} kg/(m^2 s)")
-        regions = ", ".join(f"{k} ({len(v)} edges)" for k, v in sorted(body.mesh.regions.items()))
+        facet = "edges" if body.mesh.dim == 2 else "faces"
+        regions = ", ".join(f"{k} ({len(v)} {facet})"
+                            for k, v in sorted(body.mesh.regions.items()))
         lines.append(f"  boundary regions: {regions or 'none'}")
     h_over_c = float(np.min(disc.node_length / disc.material_table[disc.node_material, CP]))
     dt = case.run.cfl * h_over_c

@@ -1,7 +1,7 @@
-"""Safe evaluation of small math expressions of the reference coordinates x and y.
+"""Safe evaluation of small math expressions of the reference coordinates x, y (and z).
 
 Used for initial velocity fields in case files, e.g. ``"10*sin(pi*x/0.0324)"``. The string is
-parsed with :mod:`ast` and walked node by node: only numbers, the names x, y, pi and e, the
+parsed with :mod:`ast` and walked node by node: only numbers, the coordinate names, pi and e, the
 arithmetic operators and a fixed set of numpy functions are accepted. Nothing is ever passed
 to Python's ``eval``.
 """
@@ -35,8 +35,9 @@ _UNARY = {ast.USub: operator.neg, ast.UAdd: operator.pos}
 _VARIABLES = ("x", "y")
 
 
-def compile_expression(text: str, key: str):
-    """Check ``text`` and return a function f(x, y) -> array. Raises InputError naming ``key``."""
+def compile_expression(text: str, key: str, variables=_VARIABLES):
+    """Check ``text`` and return a function f(*coordinates) -> array of the ``variables``
+    (x, y; or x, y, z in 3D). Raises InputError naming ``key``."""
     if len(text) > MAX_LENGTH:
         raise InputError(f"{key}: expression of {len(text)} characters; at most {MAX_LENGTH} "
                          "are accepted")
@@ -48,33 +49,35 @@ def compile_expression(text: str, key: str):
     if depth > MAX_DEPTH:
         raise InputError(f"{key}: expression nested {depth} deep; at most {MAX_DEPTH} levels "
                          "are accepted")
-    _check(tree.body, key, text)
+    _check(tree.body, key, text, tuple(variables))
 
-    def evaluate(x, y):
+    def evaluate(*coordinates):
         try:
             with np.errstate(all="ignore"):
-                value = _eval(tree.body, {"x": x, "y": y})
-            return np.broadcast_to(np.asarray(value, dtype=float), np.shape(x)).copy()
+                value = _eval(tree.body, dict(zip(variables, coordinates)))
+            return np.broadcast_to(np.asarray(value, dtype=float),
+                                   np.shape(coordinates[0])).copy()
         except (TypeError, ValueError, ArithmeticError) as exc:
             raise InputError(f"{key}: cannot evaluate {_short(text)} ({exc})") from None
 
     return evaluate
 
 
-def _check(node, key, text):
+def _check(node, key, text, variables):
     allowed = ", ".join(sorted(_FUNCTIONS))
+    names = ", ".join(variables)
     if isinstance(node, ast.Constant):
         if not isinstance(node.value, (int, float)) or isinstance(node.value, bool):
             raise InputError(f"{key}: only numbers are allowed as constants in {_short(text)}")
     elif isinstance(node, ast.Name):
-        if node.id not in _VARIABLES and node.id not in _CONSTANTS:
+        if node.id not in variables and node.id not in _CONSTANTS:
             raise InputError(f"{key}: unknown name {node.id!r} in {_short(text)} "
-                             "(expected x, y, pi, e)")
+                             f"(expected {names}, pi, e)")
     elif isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
-        _check(node.left, key, text)
-        _check(node.right, key, text)
+        _check(node.left, key, text, variables)
+        _check(node.right, key, text, variables)
     elif isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
-        _check(node.operand, key, text)
+        _check(node.operand, key, text, variables)
     elif isinstance(node, ast.Call) and isinstance(node.func, ast.Name) \
             and node.func.id in _FUNCTIONS and not node.keywords:
         arity = _FUNCTIONS[node.func.id][1]
@@ -82,10 +85,10 @@ def _check(node, key, text):
             raise InputError(f"{key}: {node.func.id}() takes {arity} argument"
                              f"{'s' if arity > 1 else ''}, got {len(node.args)} in {_short(text)}")
         for arg in node.args:
-            _check(arg, key, text)
+            _check(arg, key, text, variables)
     else:
-        raise InputError(f"{key}: unsupported syntax in {_short(text)} (allowed: numbers, x, y, pi, "
-                         f"e, + - * / **, and the functions {allowed})")
+        raise InputError(f"{key}: unsupported syntax in {_short(text)} (allowed: numbers, {names}, "
+                         f"pi, e, + - * / **, and the functions {allowed})")
 
 
 def _eval(node, variables):

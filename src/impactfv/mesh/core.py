@@ -10,15 +10,20 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import InputError
-from .edges import boundary_facets, directed_edges, edge_keys, unique_edges
+from .edges import boundary_facets, cell_facets, facet_keys, unique_edges
+
+#: the dihedral angles of a regular tetrahedron, degrees
+REGULAR_DIHEDRAL = float(np.degrees(np.arccos(1.0 / 3.0)))
 
 
 @dataclass
 class Mesh:
-    """Reference points (n, d) and cells (m, d + 1): counter-clockwise triangles in 2D.
+    """Reference points (n, d) and cells (m, d + 1): counter-clockwise triangles in 2D,
+    positively oriented tetrahedra in 3D.
 
     ``regions`` maps a region name to its boundary facets (k, d), each oriented like the
-    boundary of its cell (2D: the body lies on the left of a->b, outward normal (dy, -dx)/L).
+    boundary of its cell (2D: the body lies on the left of a->b, outward normal (dy, -dx)/L;
+    3D: (b - a) x (c - a) points out of the body).
     """
 
     points: np.ndarray
@@ -39,12 +44,21 @@ class Mesh:
         d2 = p[:, 2] - p[:, 0]
         return 0.5 * (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0])
 
+    def cell_volumes(self) -> np.ndarray:
+        """Signed measure of each cell: the area of a triangle (2D), the volume of a
+        tetrahedron (3D); positive when the cell is oriented as the class requires."""
+        if self.dim == 2:
+            return self.triangle_areas()
+        return signed_volumes(self.points, self.cells)
+
     def edge_lengths(self) -> np.ndarray:
-        e = unique_edges(self.cells)
+        e = unique_edges(self.cells, self.dim)
         return np.linalg.norm(self.points[e[:, 1]] - self.points[e[:, 0]], axis=1)
 
     def quality(self) -> dict:
         """Statistics a user wants before running: sizes, aspect ratios, smallest angles."""
+        if self.dim == 3:
+            return self._tetrahedron_quality()
         p = self.points[self.cells]
         lengths = np.stack([np.linalg.norm(p[:, (i + 1) % 3] - p[:, i], axis=1)
                             for i in range(3)], axis=1)
@@ -66,82 +80,138 @@ class Mesh:
             "min_angle_deg": float(min_angle.min()),
         }
 
+    def _tetrahedron_quality(self) -> dict:
+        """Sizes, the radius ratio (3 r_in / R_circ, so that a regular tetrahedron has aspect
+        ratio 1 and a sliver a large one) and the smallest dihedral angle."""
+        p = self.points[self.cells]
+        volume = np.abs(signed_volumes(self.points, self.cells))
+        faces = [p[:, list(f)] for f in ((1, 2, 3), (0, 3, 2), (0, 1, 3), (0, 2, 1))]
+        normals = [0.5 * np.cross(f[:, 1] - f[:, 0], f[:, 2] - f[:, 0]) for f in faces]
+        face_area = np.stack([np.linalg.norm(nv, axis=1) for nv in normals], axis=1)
+        r_in = 3.0 * volume / face_area.sum(axis=1)
+        # circumradius: the centre c solves 2 (p_i - p_0) . c = |p_i|^2 - |p_0|^2
+        A = 2.0 * (p[:, 1:] - p[:, :1])
+        rhs = (p[:, 1:] ** 2).sum(axis=2) - (p[:, :1] ** 2).sum(axis=2)
+        centre = np.linalg.solve(A, rhs[:, :, None])[:, :, 0]
+        r_circ = np.linalg.norm(centre - p[:, 0], axis=1)
+        aspect = r_circ / (3.0 * r_in)
+        # dihedral angle at the edge shared by faces f and g: pi minus the angle between
+        # their outward normals
+        unit = [nv / np.linalg.norm(nv, axis=1)[:, None] for nv in normals]
+        angles = [np.degrees(np.pi - np.arccos(np.clip((unit[f] * unit[g]).sum(axis=1), -1, 1)))
+                  for f in range(4) for g in range(f + 1, 4)]
+        edge_len = self.edge_lengths()
+        return {
+            "nodes": int(self.n_nodes), "tetrahedra": int(len(self.cells)),
+            "volume": float(volume.sum()),
+            "edge_length_min": float(edge_len.min()), "edge_length_max": float(edge_len.max()),
+            "aspect_ratio_max": float(aspect.max()),
+            "min_dihedral_deg": float(np.min(angles)),
+        }
+
+
+def signed_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """det[b - a, c - a, d - a] / 6 of each tetrahedron (a, b, c, d)."""
+    p = points[tets]
+    return np.einsum("ij,ij->i", p[:, 1] - p[:, 0],
+                     np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0])) / 6.0
+
 
 def validate_and_orient(mesh: Mesh, source: str) -> Mesh:
-    """Check a mesh for the errors a user can make; orient triangles counter-clockwise.
+    """Check a mesh for the errors a user can make; orient its cells (triangles
+    counter-clockwise, tetrahedra with positive volume).
 
-    Raises InputError naming ``source`` for degenerate triangles, out-of-range or duplicated
-    nodes, edges shared by more than two triangles, and empty regions.
+    Raises InputError naming ``source`` for degenerate cells, out-of-range or duplicated
+    nodes, facets shared by more than two cells, folds, and empty regions.
     """
     pts = np.asarray(mesh.points, dtype=float)
-    tri = np.asarray(mesh.cells)
-    if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 3:
-        raise InputError(f"{source}: expected at least 3 points with 2 coordinates")
+    cells = np.asarray(mesh.cells)
+    if pts.ndim != 2 or pts.shape[1] not in (2, 3) or len(pts) < pts.shape[1] + 1:
+        raise InputError(f"{source}: expected at least 3 points with 2 coordinates (or 4 "
+                         "with 3)")
+    d = pts.shape[1]
+    kind, kinds = ("triangle", "triangles") if d == 2 else ("tetrahedron", "tetrahedra")
     if not np.all(np.isfinite(pts)):
         raise InputError(f"{source}: non-finite point coordinates")
-    if tri.ndim != 2 or tri.shape[1] != 3 or len(tri) == 0:
-        raise InputError(f"{source}: expected a non-empty list of triangles (m, 3)")
-    if tri.min() < 0 or tri.max() >= len(pts):
-        raise InputError(f"{source}: triangle node index out of range 0..{len(pts) - 1}")
-    tri = tri.astype(np.int64)
-    if np.any(np.sort(tri, axis=1)[:, 1:] == np.sort(tri, axis=1)[:, :-1]):
-        raise InputError(f"{source}: a triangle repeats a node")
-    mesh = Mesh(pts, tri, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()})
-    area = mesh.triangle_areas()
-    scale = np.median(mesh.edge_lengths()) ** 2
-    bad = np.flatnonzero(np.abs(area) <= 1e-10 * scale)
+    if cells.ndim != 2 or cells.shape[1] != d + 1 or len(cells) == 0:
+        raise InputError(f"{source}: expected a non-empty list of {kind}s (m, {d + 1})")
+    if cells.min() < 0 or cells.max() >= len(pts):
+        raise InputError(f"{source}: {kind} node index out of range 0..{len(pts) - 1}")
+    cells = cells.astype(np.int64)
+    ordered = np.sort(cells, axis=1)
+    if np.any(ordered[:, 1:] == ordered[:, :-1]):
+        raise InputError(f"{source}: a {kind} repeats a node")
+    mesh = Mesh(pts, cells, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()})
+    measure = mesh.cell_volumes()
+    scale = np.median(mesh.edge_lengths()) ** d
+    bad = np.flatnonzero(np.abs(measure) <= 1e-10 * scale)
     if len(bad):
-        raise InputError(f"{source}: {len(bad)} degenerate triangle(s) of (near) zero area, "
-                         f"first is triangle {bad[0]} with nodes {tri[bad[0]].tolist()}")
-    flip = area < 0
-    tri[flip] = tri[flip][:, [0, 2, 1]]
+        what = "area" if d == 2 else "volume"
+        raise InputError(f"{source}: {len(bad)} degenerate {kind}(s) of (near) zero {what}, "
+                         f"first is {kind} {bad[0]} with nodes {cells[bad[0]].tolist()}")
+    flip = measure < 0
+    cells[flip] = cells[flip][:, [0, 2, 1] + list(range(3, d + 1))]
     used = np.zeros(len(pts), bool)
-    used[tri.ravel()] = True
+    used[cells.ravel()] = True
     if not used.all():
-        raise InputError(f"{source}: {int((~used).sum())} node(s) belong to no triangle, "
+        raise InputError(f"{source}: {int((~used).sum())} node(s) belong to no {kind}, "
                          f"first is node {int(np.flatnonzero(~used)[0])}")
-    directed = directed_edges(tri)
-    keys = edge_keys(directed)
+    facets = cell_facets(cells, d)
+    keys = facet_keys(facets)
     _, counts = np.unique(keys, return_counts=True)
+    what = "edge" if d == 2 else "face"
     if counts.max() > 2:
-        raise InputError(f"{source}: {int((counts > 2).sum())} edge(s) shared by more than two "
-                         "triangles (the mesh is not a manifold)")
-    rounded = np.round(pts / np.sqrt(scale), 9)
-    order = np.lexsort((rounded[:, 1], rounded[:, 0]))
+        raise InputError(f"{source}: {int((counts > 2).sum())} {what}(s) shared by more than "
+                         f"two {kinds}"
+                         " (the mesh is not a manifold)")
+    rounded = np.round(pts / scale ** (1.0 / d), 9)
+    order = np.lexsort(rounded.T[::-1])
     same = np.all(rounded[order[1:]] == rounded[order[:-1]], axis=1)
     if same.any():
         raise InputError(f"{source}: {int(same.sum())} duplicated node(s) at the same "
-                         "position (merge them so the triangles connect)")
-    # now all counter-clockwise: the two triangles of an interior edge run along it in
-    # opposite directions; the same direction means both lie on one side (a fold, where
-    # triangles overlap and the body would get their mass twice)
+                         f"position (merge them so the {kinds}"
+                         " connect)")
+    # now all positively oriented: the two cells of an interior facet see it with opposite
+    # orientations; the same orientation means both lie on one side (a fold, where cells
+    # overlap and the body would get their mass twice)
     order = np.argsort(keys, kind="stable")
     pair = np.flatnonzero(keys[order][1:] == keys[order][:-1])
-    forward = directed[:, 0] < directed[:, 1]
-    folded = pair[forward[order][pair] == forward[order][pair + 1]]
+    parity = _orientation_parity(facets)
+    folded = pair[parity[order][pair] == parity[order][pair + 1]]
     if len(folded):
-        a, b = sorted(directed[order[folded[0]]].tolist())
-        raise InputError(f"{source}: the mesh folds over itself: {len(folded)} interior edge(s) "
-                         f"have both triangles on the same side, first is edge ({a}, {b}) "
-                         "(inverted triangles overlapping their neighbours)")
-    mesh.cells = tri
-    # re-orient region edges like the boundary edges they are
-    boundary = boundary_facets(tri)
-    lookup = {(int(a), int(b)): True for a, b in boundary}
-    for name, edges in mesh.regions.items():
-        if len(edges) == 0:
+        nodes = sorted(facets[order[folded[0]]].tolist())
+        raise InputError(f"{source}: the mesh folds over itself: {len(folded)} interior "
+                         f"{what}(s) have both {kinds}"
+                         f" on the same side, first is {what} {tuple(nodes)} (inverted cells "
+                         "overlapping their neighbours)")
+    mesh.cells = cells
+    # re-orient region facets like the boundary facets they are
+    boundary = boundary_facets(cells, d)
+    bkeys = facet_keys(boundary)
+    border = np.argsort(bkeys)
+    for name, region in mesh.regions.items():
+        if len(region) == 0:
             raise InputError(f"{source}: boundary region {name!r} is empty")
-        fixed = []
-        for a, b in edges:
-            if (int(a), int(b)) in lookup:
-                fixed.append((a, b))
-            elif (int(b), int(a)) in lookup:
-                fixed.append((b, a))
-            else:
-                raise InputError(f"{source}: region {name!r} has edge ({a}, {b}) that is not on "
-                                 "the boundary of the triangles")
-        mesh.regions[name] = np.array(fixed, dtype=np.int64).reshape(-1, 2)
+        region = region.reshape(-1, d)
+        rkeys = facet_keys(region)
+        pos = np.minimum(np.searchsorted(bkeys, rkeys, sorter=border), len(bkeys) - 1)
+        found = bkeys[border[pos]] == rkeys
+        if not found.all():
+            bad = region[np.flatnonzero(~found)[0]]
+            raise InputError(f"{source}: region {name!r} has {what} {tuple(bad.tolist())} that "
+                             f"is not on the boundary of the {kinds}")
+        mesh.regions[name] = boundary[border[pos]].astype(np.int64).reshape(-1, d)
     return mesh
+
+
+def _orientation_parity(facets: np.ndarray) -> np.ndarray:
+    """Whether each oriented facet is an even permutation of its sorted nodes: the two
+    cells of an interior facet give it opposite parities."""
+    if facets.shape[1] == 2:
+        return facets[:, 0] < facets[:, 1]
+    a, b, c = facets[:, 0], facets[:, 1], facets[:, 2]
+    inversions = (a > b).astype(int) + (a > c) + (b > c)
+    return inversions % 2 == 0
 
 
 def renumber_for_locality(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
@@ -150,7 +220,7 @@ def renumber_for_locality(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     Returns the renumbered mesh and ``order`` with new_points = old_points[order].
     """
     n = mesh.n_nodes
-    e = unique_edges(mesh.cells)
+    e = unique_edges(mesh.cells, mesh.dim)
     graph = sp.coo_matrix((np.ones(len(e)), (e[:, 0], e[:, 1])), shape=(n, n)).tocsr()
     graph = graph + graph.T
     order = np.asarray(reverse_cuthill_mckee(graph, symmetric_mode=True), dtype=np.int64)

@@ -125,3 +125,69 @@ def quads_to_triangles(quads, pattern="alternate"):
     tris[0::2] = t1
     tris[1::2] = t2
     return tris
+
+
+def box(origin, size, divisions) -> Mesh:
+    """Tetrahedra of the box [x0, x0+Lx] x [y0, y0+Ly] x [z0, z0+Lz] with nx x ny x nz cells.
+
+    Each hexahedral cell is cut into the six tetrahedra around one of its main diagonals
+    (Kuhn's subdivision, all six congruent, dihedral angles 45-90 degrees). The diagonal's
+    direction is mirrored from cell to cell, counted from the nearest box corner along each
+    axis, so that no direction is preferred, the face diagonals alternate in a checkerboard,
+    the mesh is symmetric about the three centre planes (for even division counts), and,
+    with at least two cells along each axis, every box corner lies on the main diagonal of
+    its cell (six tetrahedra meet there, not one). Mirroring along an axis depends only on
+    the index along that axis, so neighbouring cells cut their common face along the same
+    diagonal.
+
+    Boundary regions xmin, xmax, ymin, ymax, zmin, zmax hold the outward-oriented triangles
+    of each side.
+    """
+    from itertools import permutations
+
+    (x0, y0, z0), (lx, ly, lz), (nx, ny, nz) = origin, size, divisions
+    axes = [o + length * np.arange(k + 1) / k for o, length, k in zip(origin, size, divisions)]
+    X, Y, Z = np.meshgrid(*axes, indexing="ij")
+    points = np.column_stack([X.ravel(order="F"), Y.ravel(order="F"), Z.ravel(order="F")])
+
+    def node(i, j, k):
+        return i + (nx + 1) * (j + (ny + 1) * k)
+
+    i, j, k = (a.ravel(order="F") for a in np.meshgrid(np.arange(nx), np.arange(ny),
+                                                        np.arange(nz), indexing="ij"))
+    # mirror each axis in the cells whose distance from the nearer end is odd
+    flips = []
+    for index, count in ((i, nx), (j, ny), (k, nz)):
+        from_end = np.where(index > (count - 1) / 2, count - 1 - index, index)
+        mirrored_half = index > (count - 1) / 2
+        flips.append((from_end % 2 == 1) ^ mirrored_half)
+    tets = []
+    for order in permutations(range(3)):
+        corner = np.zeros((len(i), 3), np.int64)
+        path = [corner.copy()]
+        for axis in order:
+            corner[:, axis] = 1
+            path.append(corner.copy())
+        tet = []
+        for local in path:
+            # local corner (0/1 per axis), mirrored where the cell is mirrored
+            li = np.where(flips[0], 1 - local[:, 0], local[:, 0])
+            lj = np.where(flips[1], 1 - local[:, 1], local[:, 1])
+            lk = np.where(flips[2], 1 - local[:, 2], local[:, 2])
+            tet.append(node(i + li, j + lj, k + lk))
+        tets.append(np.column_stack(tet))
+    tets = np.concatenate(tets).astype(np.int64)
+    p = points[tets]
+    volume = np.einsum("ij,ij->i", p[:, 1] - p[:, 0],
+                       np.cross(p[:, 2] - p[:, 0], p[:, 3] - p[:, 0]))
+    tets[volume < 0] = tets[volume < 0][:, [0, 2, 1, 3]]
+    from .edges import boundary_facets
+    facets = boundary_facets(tets, 3)
+    centre = points[facets].mean(axis=1)
+    regions = {}
+    for axis, (lo, hi) in enumerate(((x0, x0 + lx), (y0, y0 + ly), (z0, z0 + lz))):
+        tol = 1e-9 * size[axis]
+        name = "xyz"[axis]
+        regions[name + "min"] = facets[np.abs(centre[:, axis] - lo) < tol]
+        regions[name + "max"] = facets[np.abs(centre[:, axis] - hi) < tol]
+    return Mesh(points, tets, regions)

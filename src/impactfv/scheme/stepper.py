@@ -177,8 +177,10 @@ class FVStepper:
             fields = {key: np.array(value[s]) for key, value in data.items()}
             if "contact_status" in fields:
                 fields["contact_status"] = self.contact.state[s].copy()
+            cells = b.cells - b.start
             fields.update(reference_points=m.X[s].copy(), points=self.x[s].copy(),
-                          triangles=b.cells - b.start, F=self.F[s].copy())
+                          cells=cells, F=self.F[s].copy())
+            fields["triangles" if m.dim == 2 else "tetrahedra"] = cells
             out[b.name] = fields
         return out
 
