@@ -308,6 +308,9 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
                                  f"{', '.join(sorted(mesh.regions)) or 'none'})")
         velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity", dim)
         case.bodies.append(Body(b, case.materials[b.material], mesh, velocity))
+    if dim == 3 and spec.run.method != "fv":
+        raise InputError(f"{name}: run.method: the finite element baselines (fem-t3, "
+                         f"fem-q4md) are 2D only; a 3D mesh runs with method = \"fv\"")
     for k, c in enumerate(spec.contact):
         if c.wall is not None:
             for key in ("point", "normal", "velocity"):

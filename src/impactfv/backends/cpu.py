@@ -83,6 +83,12 @@ def local_matrix(d):
 
 
 @njit(inline="always")
+def local_components(m):
+    """A scratch vector of m <= 16 entries on the stack (one per reconstructed field)."""
+    return carray(_stack_buffer(16), m)
+
+
+@njit(inline="always")
 def local_rows(k, d):
     """k scratch vectors of length d (k d <= 48) on the stack, as the rows of one array."""
     return carray(_stack_buffer(48), (k, d))

@@ -17,8 +17,8 @@ import numpy as np
 from numba import njit, prange
 
 from .. import materials as M
-from ..backends.cpu import (load_matrix, load_vector, local_matrix, local_rows, local_vector,
-                            point, store_matrix)
+from ..backends.cpu import (load_matrix, load_vector, local_components, local_matrix,
+                            local_rows, local_vector, point, store_matrix)
 from ..tensors import determinant as _determinant
 from ..tensors import symmetric_index as _symmetric_index
 from . import limiters as L
@@ -69,75 +69,91 @@ def pack_velocity_and_stress(v, sigma, U, dim):
 
 
 @njit(cache=True, parallel=True)
-def gradient(v, node_edge_start, node_neighbour, node_C, bface_start, bface_others, bface_C,
-             closure, volume, grad, vmin, vmax, dim, components):
-    """Green-Gauss nodal gradient grad[a, i, J] = d v_i / d X_J (exact for linear fields) of
-    every component i of the nodal field v (n, m), and the range [vmin, vmax] of each
-    component over the node and its neighbours. ``components`` is a tuple of m zeros (a
-    compile-time m, like ``dim``).
+def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bface_start,
+                     bface_others, bface_C, closure, volume, kind, grad, dim, components):
+    """Limited Green-Gauss nodal gradient grad[a, i, J] of every component i of the nodal
+    field v (n, m). ``components`` is a tuple of m zeros (a compile-time m, like ``dim``).
 
-    A gather over nodes: grad_a = (sum over edges ab of (v_a + v_b)/2 C_ab + sum over the
-    node's dual boundary faces of the closure state times S/d) / Omega_a, with node_C the
-    area vector seen from a (node_edge_start / node_neighbour list a's edges, bface_start its
-    boundary faces). Each node writes only its own rows: no race, no edge blocks."""
+    Gradient (exact for linear fields): grad_a = (sum over edges ab of (v_a + v_b)/2 C_ab +
+    sum over the node's dual boundary faces of the closure state times S/d) / Omega_a, with
+    node_C the area vector seen from a (node_edge_start / node_neighbour list a's edges,
+    bface_start its boundary faces). Limiter (``kind``, scheme.limiters): each component's
+    gradient is scaled by the smallest factor over the node's edges (midpoint offsets
+    node_half = X_mid - X_a) that keeps the reconstructed midpoint values within the range of
+    the node and its neighbours. A gather over nodes: each node reads its neighbours once and
+    writes only its own rows (no race, no edge blocks); gradient and range stay on the stack.
+
+    Barth-Jespersen's factor min(1, dmax / change) falls as the change grows, so its
+    smallest value over the edges is that of the largest positive and of the most negative
+    change: two evaluations per component instead of one per edge (the same result).
+    Venkatakrishnan's factor is evaluated on every edge."""
     d = len(dim)
     m = len(components)
     own, denominator = closure
     for a in prange(v.shape[0]):
-        inv = 1.0 / volume[a]
+        g = local_rows(m, d)
+        lo = local_components(m)
+        hi = local_components(m)
         for i in range(m):
-            u = v[a, i]
-            lo = u
-            hi = u
+            lo[i] = v[a, i]
+            hi[i] = v[a, i]
             for J in range(d):
-                grad[a, i, J] = 0.0
-            for k in range(node_edge_start[a], node_edge_start[a + 1]):
-                ub = v[node_neighbour[k], i]
-                mean = 0.5 * (u + ub)
+                g[i, J] = 0.0
+        for k in range(node_edge_start[a], node_edge_start[a + 1]):
+            b = node_neighbour[k]
+            for i in range(m):
+                ub = v[b, i]
+                mean = 0.5 * (v[a, i] + ub)
                 for J in range(d):
-                    grad[a, i, J] += mean * node_C[k, J]
-                lo = min(lo, ub)
-                hi = max(hi, ub)
-            for h in range(bface_start[a], bface_start[a + 1]):
-                face = own * u
+                    g[i, J] += mean * node_C[k, J]
+                lo[i] = min(lo[i], ub)
+                hi[i] = max(hi[i], ub)
+        for h in range(bface_start[a], bface_start[a + 1]):
+            for i in range(m):
+                face = own * v[a, i]
                 for o in bface_others[h]:
                     face += v[o, i]
                 face /= denominator
                 for J in range(d):
-                    grad[a, i, J] += face * bface_C[h, J]
-            for J in range(d):
-                grad[a, i, J] *= inv
-            vmin[a, i] = lo
-            vmax[a, i] = hi
-
-
-@njit(cache=True, parallel=True)
-def limit_gradient(v, node_edge_start, node_half, kind, vmin, vmax, grad, dim, components):
-    """Scale each component's gradient by the smallest limiter factor over the node's edges,
-    so that the reconstructed midpoint values stay within the neighbours' range. A gather
-    over nodes: node a's edges are node_edge_start[a] .. node_edge_start[a + 1] - 1 with
-    midpoint offsets node_half (X_mid - X_a), so each node reads its gradient once and
-    writes it once."""
-    d = len(dim)
-    m = len(components)
-    for a in prange(v.shape[0]):
+                    g[i, J] += face * bface_C[h, J]
+        inv = 1.0 / volume[a]
         for i in range(m):
-            u, lo, hi = v[a, i], vmin[a, i], vmax[a, i]
-            # a change below 1e-10 of the local range needs no limiting; without this
-            # tolerance a round-off sized change at an extremum would switch phi from 1 to 0
-            tolerance = 1e-10 * (hi - lo)
-            phi = 1.0
-            for k in range(node_edge_start[a], node_edge_start[a + 1]):
-                change = 0.0
-                for J in range(d):
-                    change += grad[a, i, J] * node_half[k, J]
-                if abs(change) <= tolerance:
-                    continue
-                f = limiter_factor(kind, u, lo, hi, change)
-                if f < phi:
-                    phi = f
             for J in range(d):
-                grad[a, i, J] *= phi
+                g[i, J] = g[i, J] * inv
+        if kind == L.BARTH_JESPERSEN:
+            rise = local_components(m)
+            fall = local_components(m)
+            for i in range(m):
+                rise[i] = 0.0
+                fall[i] = 0.0
+            for k in range(node_edge_start[a], node_edge_start[a + 1]):
+                for i in range(m):
+                    change = 0.0
+                    for J in range(d):
+                        change += g[i, J] * node_half[k, J]
+                    rise[i] = max(rise[i], change)
+                    fall[i] = min(fall[i], change)
+        for i in range(m):
+            phi = 1.0
+            if kind != L.NONE:
+                u = v[a, i]
+                # a change below 1e-10 of the local range needs no limiting; without this
+                # tolerance a round-off sized change at an extremum would switch phi to 0
+                tolerance = 1e-10 * (hi[i] - lo[i])
+                if kind == L.BARTH_JESPERSEN:
+                    if rise[i] > tolerance:
+                        phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], rise[i]))
+                    if fall[i] < -tolerance:
+                        phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], fall[i]))
+                else:
+                    for k in range(node_edge_start[a], node_edge_start[a + 1]):
+                        change = 0.0
+                        for J in range(d):
+                            change += g[i, J] * node_half[k, J]
+                        if abs(change) > tolerance:
+                            phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], change))
+            for J in range(d):
+                grad[a, i, J] = g[i, J] * phi
 
 
 @njit(cache=True, inline="always")

@@ -15,7 +15,6 @@ from ..errors import SimulationError
 from . import kernels as K
 from .discretisation import Discretisation, discretise
 from .limiters import IDS as LIMITER_IDS
-from .limiters import NONE as LIMITER_NONE
 from .time import STAGES
 
 
@@ -49,7 +48,6 @@ class FVStepper:
         self.components = dim_tag(ncomp)
         self.U = np.empty((n, ncomp)) if self.stress_reconstructed else self.v
         self.grad = np.zeros((n, ncomp, d))
-        self.vmin, self.vmax = (np.empty((n, ncomp)) for _ in range(2))
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
@@ -79,12 +77,10 @@ class FVStepper:
         if self.stress_reconstructed:
             K.pack_velocity_and_stress(self.v, self.sigma, self.U, self.dim)
         if self.order == 2:
-            K.gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C, m.bface_start,
-                       m.bface_others, m.bface_C, m.closure, m.volume, self.grad, self.vmin, self.vmax,
-                       self.dim, self.components)
-            if self.limiter != LIMITER_NONE:
-                K.limit_gradient(self.U, m.node_edge_start, m.node_half, self.limiter,
-                                 self.vmin, self.vmax, self.grad, self.dim, self.components)
+            K.limited_gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C,
+                               m.node_half, m.bface_start, m.bface_others, m.bface_C,
+                               m.closure, m.volume, self.limiter, self.grad, self.dim,
+                               self.components)
         if self.contact is not None:
             self.contact.stage(self.x, self.v, self.F, self.sigma, self.grad, self.order == 2,
                                self.dt, stage)
