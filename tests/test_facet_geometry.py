@@ -46,15 +46,19 @@ def test_dual_faces_of_a_facet_share_its_area_vector():
     G.facet_area_vector(x, np.array([0, 1, 2]), S)
     out = np.empty(3)
     for a, others in ((0, [1, 2]), (1, [0, 2]), (2, [0, 1])):
-        norm = G.dual_face_vector(x, a, np.array(others), S, out)
+        norm = G.dual_face_vector(x, x, a, np.array(others), S, out)
         assert out == pytest.approx(S / 3, rel=1e-12, abs=1e-15)
         assert norm == pytest.approx(np.linalg.norm(S) / 3)
     x2 = np.array([[0.0, 0.0], [3.0, 4.0]])
     S2 = np.empty(2)
     assert G.facet_area_vector(x2, np.array([0, 1]), S2) == pytest.approx(5.0)
     out2 = np.empty(2)
-    G.dual_face_vector(x2, 1, np.array([0]), S2, out2)
+    G.dual_face_vector(x2, x2, 1, np.array([0]), S2, out2)
     assert out2 == pytest.approx(S2 / 2)
+    # a body turned by 180 degrees: the face turns with it, it does not flip inward
+    turned = -x2
+    G.dual_face_vector(turned, x2, 1, np.array([0]), S2, out2)
+    assert out2 == pytest.approx(-S2 / 2)
 
 
 def square(x0, y0, s):

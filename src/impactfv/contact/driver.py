@@ -20,7 +20,8 @@ from ..geometry.surfaces import surface_facets
 from ..mesh.edges import facet_index
 from . import riemann_step as RS
 from .overlap import closing_fractions, contact_pieces
-from .search import find_partners, surface_normals, wall_gaps
+from .search import (find_partners, forget_partners, near_each_other, surface_normals,
+                     wall_gaps)
 
 
 @dataclass
@@ -28,9 +29,9 @@ class Surface:
     """The contact surface of one body in one contact."""
 
     nodes: np.ndarray          # its nodes
-    facets: np.ndarray         # its boundary facets (segments in 2D)
+    facets: np.ndarray         # its boundary facets (segments in 2D, triangles in 3D)
     faces: np.ndarray          # the dual boundary faces on them
-    facet_faces: np.ndarray    # per facet, the dual faces of its two end nodes on it
+    facet_faces: np.ndarray    # per facet, the dual faces of its d nodes on it
 
 
 @dataclass
@@ -69,10 +70,12 @@ class ContactSystem:
             self.pairs.append(pair)
         surfaces = [s for p in self.pairs for s in p.surfaces]
         all_facets = np.concatenate([s.facets for s in surfaces])
-        lengths = np.linalg.norm(disc.X[all_facets[:, 1]] - disc.X[all_facets[:, 0]], axis=1)
-        # search radius: a node farther than two segments from the partner cannot touch it
-        # within a step (it moves far less than a segment per step at any stable time step)
-        self.pad = 2.0 * lengths.max()
+        lengths = max(np.linalg.norm(disc.X[all_facets[:, (k + 1) % d]]
+                                     - disc.X[all_facets[:, k]], axis=1).max()
+                      for k in range(d if d == 3 else 1))
+        # search radius: a node farther than two facets from the partner cannot touch it
+        # within a step (it moves far less than a facet per step at any stable time step)
+        self.pad = 2.0 * lengths
         self.surface_nodes = np.unique(np.concatenate([s.nodes for s in surfaces]))
         self.faces = np.unique(np.concatenate([s.faces for s in surfaces]))
         h = len(disc.bface_node)
@@ -94,7 +97,7 @@ class ContactSystem:
         self.normal_out = np.zeros((n, d))      # outward surface normal
         # search results of the current pass
         self.partner = np.full(n, -1, np.int64)
-        self.partner_xi = np.zeros(n)
+        self.partner_w = np.zeros((n, d))      # barycentric weights of the closest point
         self.partner_dist = np.zeros(n)
         self.gap = np.zeros(n)
         self.normal = np.zeros((n, d))          # contact normal, from the node into the partner
@@ -103,6 +106,9 @@ class ContactSystem:
         self.motion_sum = np.zeros((n, d))
         self.traction_sum = np.zeros(n)
         self._pieces(4 * len(self.faces) + 16)
+        # the slave nodes and master facets of a pass that are near each other
+        self.slave_near = np.zeros(n, np.int64)
+        self.facets_near = np.zeros(max(len(s.facets) for s in surfaces), np.int64)
         self.wall_face_buffer = np.zeros(max(int(np.diff(self.face_start).max()), 1), np.int64)
 
     def _pieces(self, capacity):
@@ -122,12 +128,13 @@ class ContactSystem:
                                 f"{case.source}: contact[{k}].regions", name)
         facet_ids = facet_index(layout.facets, facets, f"contact[{k}]") + layout.facet_offset
         faces = np.flatnonzero(np.isin(disc.bface_facet, facet_ids))
-        # the two dual faces on each facet, in the order of the facet's end nodes
-        facet_faces = np.full((len(facets), 2), -1, np.int64)
-        row = {f: k for k, f in enumerate(facet_ids)}
-        for face in faces:
-            k = row[disc.bface_facet[face]]
-            facet_faces[k, 0 if disc.bface_node[face] == facets[k, 0] else 1] = face
+        # the d dual faces on each facet, in the order of the facet's nodes
+        facet_faces = np.full(facets.shape, -1, np.int64)
+        row = np.full(disc.bface_facet.max() + 1, -1, np.int64)
+        row[facet_ids] = np.arange(len(facet_ids))
+        k = row[disc.bface_facet[faces]]
+        position = np.argmax(facets[k] == disc.bface_node[faces][:, None], axis=1)
+        facet_faces[k, position] = faces
         return Surface(np.unique(facets), facets, faces, facet_faces)
 
     # ------------------------------------------------------------------ per stage
@@ -186,19 +193,32 @@ class ContactSystem:
         gmin = np.inf
         for first, (slave, master) in enumerate(((0, 1), (1, 0))):
             slave_nodes = pair.surfaces[slave].nodes
-            segs = pair.surfaces[master].facets
-            segment_faces = pair.surfaces[master].facet_faces
+            surface = pair.surfaces[master]
+            # only the parts of the two surfaces within the search radius of each other
+            n_near, n_facets = near_each_other(x, slave_nodes, surface.facets, self.pad,
+                                               self.slave_near, self.facets_near)
+            forget_partners(slave_nodes, self.partner)
+            if n_near == 0 or n_facets == 0:
+                if apply and stage_index == 0:   # no partner: phi from the memory alone
+                    closing_fractions(x, v, slave_nodes, self.partner, self.partner_w,
+                                      self.gap, self.normal, surface.facets, self.memory, dt,
+                                      self.phi)
+                continue
+            near = self.slave_near[:n_near]
+            chosen = self.facets_near[:n_facets]
+            segs = surface.facets[chosen]
+            segment_faces = surface.facet_faces[chosen]
             bins = build_bins(x, segs, self.pad)
-            g = find_partners(x, slave_nodes, self.normal_out, segs, *bins, self.pad,
-                              self.partner, self.partner_xi, self.partner_dist, self.gap,
+            g = find_partners(x, near, self.normal_out, segs, *bins, self.pad,
+                              self.partner, self.partner_w, self.partner_dist, self.gap,
                               self.normal)
             gmin = min(gmin, g)
             if not apply:
                 continue
             if stage_index == 0:
-                closing_fractions(x, v, slave_nodes, self.partner, self.partner_xi, self.gap,
+                closing_fractions(x, v, slave_nodes, self.partner, self.partner_w, self.gap,
                                   self.normal, segs, self.memory, dt, self.phi)
-            count = self._contact_pieces(x, slave_nodes, segs, bins)
+            count = self._contact_pieces(x, near, segs, bins)
             RS.piece_states(disc.X, x, F, v, sigma, disc.node_material,
                             disc.material_table, disc.bface_C, disc.bface_others, segs,
                             segment_faces, self.phi, count, self.piece_node, self.piece_face,

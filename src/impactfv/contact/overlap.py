@@ -2,18 +2,24 @@
 against which node of the partner.
 
 Every dual boundary face of a node in contact (2D: the half-edge from the node to its edge
-midpoint) is projected on the partner's segments that face it and split where it overlaps the
-partner nodes' half-segments. Each overlap becomes a "piece": (node, its face, partner node,
-the partner's segment, spatial length, common normal). Because each node receives the traction
-over its own dual boundary, a uniform contact pressure is transmitted exactly when the meshes
-do not match. 3D replaces the segment overlap by polygon clipping here.
+midpoint; 3D: the quadrilateral, a third of a boundary triangle) is projected on the
+partner's facets that face it and split where it overlaps the partner nodes' dual faces (2D:
+half-segments, by interval overlap; 3D: quadrilaterals, by polygon clipping in the facet's
+plane). Each overlap becomes a "piece": (node, its face, partner node, the partner's facet,
+spatial size, common normal). Because each node receives the traction over its own dual
+boundary, a uniform contact pressure is transmitted exactly when the meshes do not match.
 """
 
 import math
 
+import numpy as np
 from numba import njit
 
+from ..backends.cpu import local_vector
 from ..geometry.bins import bin_of
+from ..geometry.facets import (MAX_POLYGON, clip_polygon, closest_point, dual_face_polygon,
+                               dual_face_vector, facet_area_vector, plane_frame, polygon_area,
+                               project_to_plane)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -30,9 +36,10 @@ def step_fraction_in_contact(g, gdot, dt, remembered):
 
 
 @njit(cache=True, error_model="numpy")
-def closing_fractions(x, v, slave, partner, partner_xi, gap, normal, segs, memory, dt, phi):
+def closing_fractions(x, v, slave, partner, partner_w, gap, normal, facets, memory, dt, phi):
     """Fraction of this step each slave node spends in contact (step_fraction_in_contact),
-    from its gap and the rate at which its partner segment approaches it."""
+    from its gap and the rate at which the closest point of its partner facet (barycentric
+    weights partner_w) approaches it."""
     d = x.shape[1]
     for i in range(slave.shape[0]):
         a = slave[i]
@@ -40,32 +47,138 @@ def closing_fractions(x, v, slave, partner, partner_xi, gap, normal, segs, memor
         if s < 0:
             phi[a] = 1.0 if memory[a] else 0.0
             continue
-        p = segs[s, 0]
-        q = segs[s, 1]
-        xi = partner_xi[a]
         gdot = 0.0
         for k in range(d):
-            gdot += ((1.0 - xi) * v[p, k] + xi * v[q, k] - v[a, k]) * normal[a, k]
+            vp = 0.0
+            for m in range(d):
+                vp += partner_w[a, m] * v[facets[s, m], k]
+            gdot += (vp - v[a, k]) * normal[a, k]
         phi[a] = step_fraction_in_contact(gap[a], gdot, dt, memory[a] > 0)
 
 
 @njit(cache=True, error_model="numpy")
 def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
-                   bface_others, bface_C, segs, origin, h, shape, start, items, piece_node,
+                   bface_others, bface_C, facets, origin, h, shape, start, items, piece_node,
                    piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
                    piece_normal):
-    """Pieces of the slave nodes in contact this step (phi > 0) against the master segments
-    near them, in node order.
+    """Pieces of the slave nodes in contact this step (phi > 0) against the master facets
+    near them, in node order: piece_length is the size of the overlap (a length in 2D, an
+    area in 3D), piece_face_length the size of the slave's face.
 
-    A master segment takes part when it and the face point towards each other and it lies no
-    farther from the node than the closest one plus the length of the face: a face cannot
-    touch a surface farther away than its own length. The common normal of a piece is the
-    mean of the face's outward normal and the segment's inward one (seed section 3: "a unique
+    A master facet takes part when it and the face point towards each other and it lies no
+    farther from the node than the closest one plus the size of the face: a face cannot
+    touch a surface farther away than its own size. The common normal of a piece is the
+    mean of the face's outward normal and the facet's inward one (seed section 3: "a unique
     common normal"); both passes of a contact then see the same normal, also at the ends of
     a face where the two surfaces are not parallel.
     Returns the number of pieces; when it exceeds the capacity of the piece arrays only the
     count is meaningful and the caller grows them and calls again.
     """
+    if x.shape[1] == 2:
+        return _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start,
+                          face_list, bface_others, bface_C, facets, origin, h, shape, start,
+                          items, piece_node, piece_face, piece_partner, piece_segment,
+                          piece_length, piece_face_length, piece_normal)
+    return _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
+                      bface_others, bface_C, facets, origin, h, shape, start, items,
+                      piece_node, piece_face, piece_partner, piece_segment, piece_length,
+                      piece_face_length, piece_normal)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
+               bface_others, bface_C, facets, origin, h, shape, start, items, piece_node,
+               piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
+               piece_normal):
+    """contact_pieces in 3D: each face quadrilateral, projected on the plane of a facing
+    master triangle, clipped by the quadrilaterals of the triangle's three nodes."""
+    capacity = piece_node.shape[0]
+    count = 0
+    f = local_vector(3)
+    S = local_vector(3)
+    sn = local_vector(3)
+    e1 = local_vector(3)
+    e2 = local_vector(3)
+    face_poly = np.empty((4, 3))
+    node_poly = np.empty((4, 3))
+    flat_face = np.empty((4, 2))
+    flat_node = np.empty((4, 2))
+    work = np.empty((MAX_POLYGON, 2))
+    clipped = np.empty((MAX_POLYGON, 2))
+    others = np.empty(2, np.int64)
+    w = local_vector(3)
+    for i in range(slave.shape[0]):
+        a = slave[i]
+        if phi[a] == 0.0 or partner[a] < 0:
+            continue
+        cell = bin_of(x[a], origin, h, shape)
+        for k in range(face_start[a], face_start[a + 1]):
+            face = face_list[k]
+            face_area = dual_face_vector(x, X, a, bface_others[face], bface_C[face], f)
+            for j in range(3):
+                f[j] /= face_area
+            dual_face_polygon(x, a, bface_others[face], face_poly)
+            size = 0.0
+            for j in range(1, 4):
+                r = 0.0
+                for c in range(3):
+                    r += (face_poly[j, c] - x[a, c]) ** 2
+                size = max(size, math.sqrt(r))
+            reach = partner_dist[a] + size
+            for it in range(start[cell], start[cell + 1]):
+                sm = items[it]
+                area = facet_area_vector(x, facets[sm], S)
+                facing_contact = 0.0
+                facing_face = 0.0
+                for c in range(3):
+                    sn[c] = -S[c] / area  # inward normal of the master facet
+                    facing_contact += sn[c] * normal[a, c]
+                    facing_face += sn[c] * f[c]
+                if facing_contact <= 0.0 or facing_face <= 0.0:
+                    continue
+                mp = facets[sm, 0]
+                # a facet farther from the node than the reach cannot overlap its face
+                if closest_point(x, facets[sm], x[a], w) > reach:
+                    continue
+                # the plane frame of the master facet, counter-clockwise about its outward
+                # normal, in which its nodes' quadrilaterals are counter-clockwise too
+                for c in range(3):
+                    S[c] = -sn[c]
+                plane_frame(x, facets[sm], S, e1, e2)
+                project_to_plane(face_poly, 4, x[mp], e1, e2, flat_face)
+                for side in range(3):
+                    b = facets[sm, side]
+                    others[0] = facets[sm, (side + 1) % 3]
+                    others[1] = facets[sm, (side + 2) % 3]
+                    dual_face_polygon(x, b, others, node_poly)
+                    project_to_plane(node_poly, 4, x[mp], e1, e2, flat_node)
+                    n_clip = clip_polygon(flat_face, 4, flat_node, 4, work, clipped)
+                    ov = abs(polygon_area(clipped, n_clip))
+                    if ov <= 0.0:
+                        continue
+                    if count < capacity:
+                        piece_node[count] = a
+                        piece_face[count] = face
+                        piece_partner[count] = b
+                        piece_segment[count] = sm
+                        piece_length[count] = ov
+                        piece_face_length[count] = face_area
+                        cl = 0.0
+                        for c in range(3):
+                            cl += (f[c] + sn[c]) ** 2
+                        cl = math.sqrt(cl)
+                        for c in range(3):
+                            piece_normal[count, c] = (f[c] + sn[c]) / cl
+                    count += 1
+    return count
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
+                   bface_others, bface_C, segs, origin, h, shape, start, items, piece_node,
+                   piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
+                   piece_normal):
+    """contact_pieces in 2D: half-edges against half-segments, by interval overlap."""
     capacity = piece_node.shape[0]
     count = 0
     for i in range(slave.shape[0]):
@@ -130,20 +243,18 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
 @njit(cache=True, error_model="numpy")
 def wall_faces(a, n, x, X, face_start, face_list, bface_others, bface_C, faces, count):
     """Dual boundary faces of node a that face the wall (the normal n points into it):
-    appended to ``faces``; returns (new count, the total length of their projections on the
+    appended to ``faces``; returns (new count, the total size of their projections on the
     wall plane). A face meeting the wall at an angle carries the wall traction on its
     projection."""
+    d = x.shape[1]
+    f = local_vector(d)
     total = 0.0
     for k in range(face_start[a], face_start[a + 1]):
         face = face_list[k]
-        o = bface_others[face, 0]
-        # the spatial half-edge, turned outward like the reference one
-        h1 = 0.5 * (x[o, 0] - x[a, 0])
-        h2 = 0.5 * (x[o, 1] - x[a, 1])
-        sign = 1.0
-        if bface_C[face, 0] * (X[o, 1] - X[a, 1]) - bface_C[face, 1] * (X[o, 0] - X[a, 0]) < 0.0:
-            sign = -1.0
-        projected = sign * (h2 * n[0] - h1 * n[1])
+        dual_face_vector(x, X, a, bface_others[face], bface_C[face], f)
+        projected = 0.0
+        for j in range(d):
+            projected += f[j] * n[j]
         if projected > 0.0:
             total += projected
             faces[count] = face

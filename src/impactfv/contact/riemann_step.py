@@ -2,7 +2,8 @@
 bodies' equations; then each contact node's state, contact velocity and motion.
 
 Each side's state is its node's velocity and Cauchy stress closed to its face as the free
-boundary flux does, (5 u_a + u_o) / 6. The Riemann problem is posed in
+boundary flux does, (5 u_a + u_o) / 6 (3D: (6 u_a + u_b + u_c) / 8). The Riemann problem is
+posed in
 nominal tractions, as the seed's eq. 5: per unit reference area of its face each side carries
 t = sigma n da/dA with impedance rho c; written per unit spatial area (where the two sides'
 tractions must balance) that is sigma n with impedance rho c / (da/dA). A piece of spatial
@@ -19,6 +20,8 @@ from numba import njit
 
 from .. import materials as M
 from ..backends.cpu import load_vector, local_matrix, local_vector, point
+from ..geometry.facets import dual_face_vector
+from ..mesh.dual import CLOSURE
 from ..scheme import riemann as R
 from ..tensors import symmetric_index as _symmetric_index
 from . import laws as CL
@@ -34,30 +37,55 @@ symmetric_index = point(_symmetric_index)
 
 RHO, CP, CS = M.RHO, M.CP, M.CS
 OPEN, STICK, SLIP = 0, 1, 2
+OWN2, DENOMINATOR2 = CLOSURE[2]
+OWN3, DENOMINATOR3 = CLOSURE[3]
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def face_state(a, o, v, sigma, vf, sf, d):
-    """Velocity and Cauchy stress of node a on its face towards node o: the boundary closure
-    (5 u_a + u_o) / 6 of the free-surface flux (docs/contact.md: reconstructed states made
-    the contact work unbalanced and the energy rise)."""
+def face_state(a, others, v, sigma, vf, sf, d):
+    """Velocity and Cauchy stress of node a on its dual boundary face (the facet's other
+    nodes ``others``): the boundary closure (5 u_a + u_o) / 6, in 3D (6 u_a + u_b + u_c) / 8,
+    of the free-surface flux (docs/contact.md: reconstructed states made the contact work
+    unbalanced and the energy rise)."""
+    own = OWN2 if d == 2 else OWN3
+    denominator = DENOMINATOR2 if d == 2 else DENOMINATOR3
     for i in range(d):
-        vf[i] = (5.0 * v[a, i] + v[o, i]) / 6.0
+        u = own * v[a, i]
+        for o in others:
+            u += v[o, i]
+        vf[i] = u / denominator
         for j in range(i, d):
-            s = (5.0 * sigma[a, i, j] + sigma[o, i, j]) / 6.0
+            s = own * sigma[a, i, j]
+            for o in others:
+                s += sigma[o, i, j]
+            s /= denominator
             sf[i, j] = s
             sf[j, i] = s
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def area_ratio(F, a, N1, N2, props, Fa, N, scratch):
-    """da/dA of a face of node a with reference unit normal (N1, N2)."""
-    for i in range(2):
-        for J in range(2):
+def area_ratio(F, a, C, props, Fa, N, scratch):
+    """da/dA of a face of node a with reference area vector C."""
+    d = Fa.shape[0]
+    for i in range(d):
+        for J in range(d):
             Fa[i, J] = F[a, i, J]
-    N[0] = N1
-    N[1] = N2
+    lc = 0.0
+    for J in range(d):
+        lc += C[J] * C[J]
+    lc = math.sqrt(lc)
+    for J in range(d):
+        N[J] = C[J] / lc
     return face_geometry(Fa, N, props, scratch)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def facet_position(facets, s, b):
+    """Position (0 .. d-1) of node b in facet s."""
+    for k in range(facets.shape[1]):
+        if facets[s, k] == b:
+            return k
+    return -1
 
 
 @njit(cache=True, error_model="numpy")
@@ -99,25 +127,17 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
         b = piece_partner[p]
         face = piece_face[p]
         sm = piece_segment[p]
-        o = bface_others[face, 0]
-        side = 0 if segs[sm, 0] == b else 1
-        ob = segs[sm, 1 - side]
-        face_b = segment_faces[sm, side]
+        face_b = segment_faces[sm, facet_position(segs, sm, b)]
         load_vector(piece_normal, p, c)
-        face_state(a, o, v, sigma, vA, SA, d)
-        face_state(b, ob, v, sigma, vB, SB, d)
+        face_state(a, bface_others[face], v, sigma, vA, SA, d)
+        face_state(b, bface_others[face_b], v, sigma, vB, SB, d)
         face_traction(SA, c, 1.0, tA)
         face_traction(SB, c, 1.0, tB)
         pa = table[node_material[a]]
         pb = table[node_material[b]]
-        # area ratios of the two faces (reference normals: the slave face's, the segment's)
-        lc = math.sqrt(bface_C[face, 0] ** 2 + bface_C[face, 1] ** 2)
-        ra = area_ratio(F, a, bface_C[face, 0] / lc, bface_C[face, 1] / lc, pa, Fa, N,
-                        scratch)
-        e1 = X[segs[sm, 1], 0] - X[segs[sm, 0], 0]
-        e2 = X[segs[sm, 1], 1] - X[segs[sm, 0], 1]
-        le = math.sqrt(e1 * e1 + e2 * e2)
-        rb = area_ratio(F, b, e2 / le, -e1 / le, pb, Fa, N, scratch)
+        # area ratios of the two faces (from their reference area vectors)
+        ra = area_ratio(F, a, bface_C[face], pa, Fa, N, scratch)
+        rb = area_ratio(F, b, bface_C[face_b], pb, Fa, N, scratch)
         zpA = pa[RHO] * pa[CP] / ra
         zsA = pa[RHO] * pa[CS] / ra
         zpB = pb[RHO] * pb[CP] / rb
@@ -137,8 +157,8 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
             force_acc[a, i] += f
             force_acc[b, i] -= f
             fsum[i] += sign * f
-        # the partner's face is its half of the segment
-        lb = 0.5 * math.sqrt((x[ob, 0] - x[b, 0]) ** 2 + (x[ob, 1] - x[b, 1]) ** 2)
+        # the partner's face: its share of the facet
+        lb = dual_face_vector(x, X, b, bface_others[face_b], bface_C[face_b], scratch)
         wa = share / piece_face_length[p]
         wb = share / lb
         face_weight[face] += wa
@@ -210,20 +230,19 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
                                   faces, 0)
         for j in range(count):
             face = faces[j]
-            o = bface_others[face, 0]
-            face_state(a, o, v, sigma, vA, S, d)
+            face_state(a, bface_others[face], v, sigma, vA, S, d)
             face_traction(S, n, 1.0, tA)
-            lc = math.sqrt(bface_C[face, 0] ** 2 + bface_C[face, 1] ** 2)
-            r = area_ratio(F, a, bface_C[face, 0] / lc, bface_C[face, 1] / lc, props, Fa, N,
-                           scratch)
+            r = area_ratio(F, a, bface_C[face], props, Fa, N, scratch)
             tn = wall_state(vA, tA, n, props[RHO] * props[CP] / r, props[RHO] * props[CS] / r,
                             vw, stick, vt, tt, vs, ts)
             if releases(tn):
                 continue
             # the projection of this face on the wall
-            h1 = 0.5 * (x[o, 0] - x[a, 0])
-            h2 = 0.5 * (x[o, 1] - x[a, 1])
-            projected = abs(h2 * n[0] - h1 * n[1])
+            dual_face_vector(x, X, a, bface_others[face], bface_C[face], scratch)
+            projected = 0.0
+            for k in range(d):
+                projected += scratch[k] * n[k]
+            projected = abs(projected)
             share = phi[a] * projected
             face_weight[face] += phi[a]
             for k in range(d):

@@ -1,8 +1,7 @@
 """Contact search (compiled): surface normals, and for each node of one body the closest
-facing segment of its partner, with the gap and the contact normal.
+facing facet of its partner, with the gap and the contact normal.
 
-2D: the facets of a surface are segments. A 3D search adds point-to-triangle projection
-here; the driver and the Riemann step do not change.
+Facets are segments in 2D and triangles in 3D (geometry.facets); the same loops serve both.
 """
 
 import math
@@ -10,93 +9,100 @@ import math
 import numpy as np
 from numba import njit
 
+from ..backends.cpu import local_vector
 from ..geometry.bins import bin_of
+from ..geometry.facets import closest_point, facet_area_vector
 
 
 @njit(cache=True, error_model="numpy")
-def surface_normals(x, nodes, segs, nrm):
-    """Outward spatial unit normal of the surface nodes (mean of the adjacent segments')."""
+def surface_normals(x, nodes, facets, nrm):
+    """Outward spatial unit normal of the surface nodes: the normalised sum of the area
+    vectors of the node's shares of its facets (each of a facet's d nodes owns S / d)."""
     d = x.shape[1]
+    S = local_vector(d)
     for i in range(nodes.shape[0]):
         a = nodes[i]
         for k in range(d):
             nrm[a, k] = 0.0
-    for j in range(segs.shape[0]):
-        p = segs[j, 0]
-        q = segs[j, 1]
-        d1 = x[q, 0] - x[p, 0]
-        d2 = x[q, 1] - x[p, 1]
-        for a in (p, q):
-            nrm[a, 0] += 0.5 * d2
-            nrm[a, 1] -= 0.5 * d1
+    share = 1.0 / d
+    for j in range(facets.shape[0]):
+        facet_area_vector(x, facets[j], S)
+        for m in range(d):
+            a = facets[j, m]
+            for k in range(d):
+                nrm[a, k] += share * S[k]
     for i in range(nodes.shape[0]):
         a = nodes[i]
-        s = math.sqrt(nrm[a, 0] ** 2 + nrm[a, 1] ** 2)
+        s = 0.0
+        for k in range(d):
+            s += nrm[a, k] * nrm[a, k]
+        s = math.sqrt(s)
         if s > 0.0:
-            nrm[a, 0] /= s
-            nrm[a, 1] /= s
+            for k in range(d):
+                nrm[a, k] /= s
 
 
 @njit(cache=True, error_model="numpy")
-def closest_segment(a, x, nrm, segs, origin, h, shape, start, items, pad):
-    """Closest master segment facing node a within ``pad``: (segment, xi, distance), or
-    (-1, 0, inf). Facing: the segment's outward normal and the node's point towards each
-    other (their dot product is negative). xi in [0, 1] is the closest point's position."""
+def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w):
+    """Closest partner facet facing node a within ``pad``: (facet, distance) with the
+    barycentric weights of the closest point in w, or (-1, inf). Facing: the facet's
+    outward normal and the node's point towards each other (negative dot product)."""
+    d = x.shape[1]
     best = -1
-    best_xi = 0.0
     best_d = np.inf
     c = bin_of(x[a], origin, h, shape)
     if c < 0:
-        return best, best_xi, best_d
-    px = x[a, 0]
-    py = x[a, 1]
+        return best, best_d
+    S = local_vector(d)
+    trial = local_vector(d)
     for k in range(start[c], start[c + 1]):
         s = items[k]
-        p = segs[s, 0]
-        q = segs[s, 1]
-        d1 = x[q, 0] - x[p, 0]
-        d2 = x[q, 1] - x[p, 1]
-        L2 = d1 * d1 + d2 * d2
-        if d2 * nrm[a, 0] - d1 * nrm[a, 1] >= 0.0:
+        facet_area_vector(x, facets[s], S)
+        facing = 0.0
+        for m in range(d):
+            facing += S[m] * nrm[a, m]
+        if facing >= 0.0:
             continue
-        xi = min(max(((px - x[p, 0]) * d1 + (py - x[p, 1]) * d2) / L2, 0.0), 1.0)
-        cx = x[p, 0] + xi * d1 - px
-        cy = x[p, 1] + xi * d2 - py
-        dist = math.sqrt(cx * cx + cy * cy)
+        dist = closest_point(x, facets[s], x[a], trial)
         if dist < best_d and dist <= pad:
             best = s
-            best_xi = xi
             best_d = dist
-    return best, best_xi, best_d
+            for m in range(d):
+                w[m] = trial[m]
+    return best, best_d
 
 
 @njit(cache=True, error_model="numpy")
-def find_partners(x, slave, nrm, segs, origin, h, shape, start, items, pad, partner,
-                  partner_xi, partner_dist, gap, normal):
-    """For every slave node: its partner segment (-1 if none within reach), the projection
-    xi on it, the distance, the gap g = (x_projection - x_a) . n and the contact normal n
-    from the node into the partner (minus the segment's outward normal). Returns the
-    smallest gap."""
+def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, partner,
+                  partner_w, partner_dist, gap, normal):
+    """For every slave node: its partner facet (-1 if none within reach), the barycentric
+    weights partner_w of the closest point on it, the distance, the gap
+    g = (x_projection - x_a) . n and the contact normal n from the node into the partner
+    (minus the facet's outward unit normal). Returns the smallest gap."""
+    d = x.shape[1]
     gmin = np.inf
+    S = local_vector(d)
+    w = local_vector(d)
     for i in range(slave.shape[0]):
         a = slave[i]
-        s, xi, dist = closest_segment(a, x, nrm, segs, origin, h, shape, start, items, pad)
+        s, dist = closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w)
         partner[a] = s
         if s < 0:
             continue
-        p = segs[s, 0]
-        q = segs[s, 1]
-        d1 = x[q, 0] - x[p, 0]
-        d2 = x[q, 1] - x[p, 1]
-        L = math.sqrt(d1 * d1 + d2 * d2)
-        n1 = -d2 / L
-        n2 = d1 / L
-        g = (x[p, 0] + xi * d1 - x[a, 0]) * n1 + (x[p, 1] + xi * d2 - x[a, 1]) * n2
-        partner_xi[a] = xi
+        L = facet_area_vector(x, facets[s], S)
+        p = facets[s, 0]
+        g = 0.0
+        for k in range(d):
+            # the projection x_p + sum_m w_m (x_m - x_p) of the node on the facet
+            proj = x[p, k]
+            for m in range(1, d):
+                proj += w[m] * (x[facets[s, m], k] - x[p, k])
+            normal[a, k] = -S[k] / L
+            g += (proj - x[a, k]) * normal[a, k]
+        for m in range(d):
+            partner_w[a, m] = w[m]
         partner_dist[a] = dist
         gap[a] = g
-        normal[a, 0] = n1
-        normal[a, 1] = n2
         if g < gmin:
             gmin = g
     return gmin
@@ -118,3 +124,57 @@ def wall_gaps(x, slave, point_on_wall, wall_normal, gap, normal):
         if g < gmin:
             gmin = g
     return gmin
+
+
+@njit(cache=True, error_model="numpy")
+def near_each_other(x, slave, facets, pad, slave_near, facets_near):
+    """The slave nodes within ``pad`` of the bounding box of the master facets, and the
+    master facets whose bounding box comes within ``pad`` of the slave nodes' box (written
+    into slave_near and facets_near; returns both counts). Only these can touch within the
+    search radius, so the bins and the search cover the part of the two surfaces where they
+    meet, not the whole of them."""
+    d = x.shape[1]
+    slo = np.full(d, np.inf)
+    shi = np.full(d, -np.inf)
+    for i in range(slave.shape[0]):
+        a = slave[i]
+        for k in range(d):
+            slo[k] = min(slo[k], x[a, k])
+            shi[k] = max(shi[k], x[a, k])
+    mlo = np.full(d, np.inf)
+    mhi = np.full(d, -np.inf)
+    n_facets = 0
+    for f in range(facets.shape[0]):
+        inside = True
+        for k in range(d):
+            flo = np.inf
+            fhi = -np.inf
+            for j in range(facets.shape[1]):
+                c = x[facets[f, j], k]
+                flo = min(flo, c)
+                fhi = max(fhi, c)
+            mlo[k] = min(mlo[k], flo)
+            mhi[k] = max(mhi[k], fhi)
+            if fhi < slo[k] - pad or flo > shi[k] + pad:
+                inside = False
+        if inside:
+            facets_near[n_facets] = f
+            n_facets += 1
+    n_slave = 0
+    for i in range(slave.shape[0]):
+        a = slave[i]
+        inside = True
+        for k in range(d):
+            if x[a, k] < mlo[k] - pad or x[a, k] > mhi[k] + pad:
+                inside = False
+        if inside:
+            slave_near[n_slave] = a
+            n_slave += 1
+    return n_slave, n_facets
+
+
+@njit(cache=True, error_model="numpy")
+def forget_partners(slave, partner):
+    """No partner for any of the slave nodes (before a search of those near the partner)."""
+    for i in range(slave.shape[0]):
+        partner[slave[i]] = -1

@@ -12,11 +12,10 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, error_model="numpy")
-def _facet_box(x, facets, f, pad):
+@njit(cache=True, inline="always", error_model="numpy")
+def _facet_box(x, facets, f, pad, lo, hi):
+    """The bounding box of facet f grown by pad, into lo and hi."""
     d = x.shape[1]
-    lo = np.empty(d)
-    hi = np.empty(d)
     for k in range(d):
         lo[k] = np.inf
         hi[k] = -np.inf
@@ -25,7 +24,6 @@ def _facet_box(x, facets, f, pad):
         for k in range(d):
             lo[k] = min(lo[k], x[a, k] - pad)
             hi[k] = max(hi[k], x[a, k] + pad)
-    return lo, hi
 
 
 @njit(cache=True, error_model="numpy")
@@ -36,12 +34,15 @@ def _register(x, facets, pad, lo, h, shape, count, items, fill):
     cursor = count[:-1].copy()
     i_lo = np.empty(d, np.int64)
     i_hi = np.empty(d, np.int64)
+    idx = np.empty(d, np.int64)
+    flo = np.empty(d)
+    fhi = np.empty(d)
     for f in range(facets.shape[0]):
-        flo, fhi = _facet_box(x, facets, f, pad)
+        _facet_box(x, facets, f, pad, flo, fhi)
         for k in range(d):
             i_lo[k] = max(int((flo[k] - lo[k]) / h), 0)
             i_hi[k] = min(int((fhi[k] - lo[k]) / h), shape[k] - 1)
-        idx = i_lo.copy()
+            idx[k] = i_lo[k]
         while True:
             c = 0
             for k in range(d - 1, -1, -1):
@@ -73,9 +74,11 @@ def build_bins(x, facets, pad):
     m = facets.shape[0]
     lo = np.full(d, np.inf)
     hi = np.full(d, -np.inf)
+    flo = np.empty(d)
+    fhi = np.empty(d)
     lmax = 0.0
     for f in range(m):
-        flo, fhi = _facet_box(x, facets, f, 0.0)
+        _facet_box(x, facets, f, 0.0, flo, fhi)
         size = 0.0
         for k in range(d):
             lo[k] = min(lo[k], flo[k])

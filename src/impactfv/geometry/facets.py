@@ -101,11 +101,7 @@ def closest_point(x, facet, point, w):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def dual_face_vector(x, a, others, reference, out):
-    """Outward spatial area vector of node a's dual boundary face on its facet (a and the
-    facet's other nodes ``others``) into out, oriented like its reference area vector
-    ``reference``; returns its norm. 2D: the half-segment to the midpoint; 3D: the
-    quadrilateral (x_a, midpoint to others[0], centroid, midpoint to others[1])."""
+def _raw_face_vector(x, a, others, out):
     d = x.shape[1]
     if d == 2:
         o = others[0]
@@ -113,26 +109,39 @@ def dual_face_vector(x, a, others, reference, out):
         h1 = 0.5 * (x[o, 1] - x[a, 1])
         out[0] = h1
         out[1] = -h0
-    else:
-        b = others[0]
-        c = others[1]
-        # diagonals: centroid - x_a and midpoint(ac) - midpoint(ab) = (x_c - x_b) / 2
-        g0 = (x[b, 0] + x[c, 0] - 2.0 * x[a, 0]) / 3.0
-        g1 = (x[b, 1] + x[c, 1] - 2.0 * x[a, 1]) / 3.0
-        g2 = (x[b, 2] + x[c, 2] - 2.0 * x[a, 2]) / 3.0
-        m0 = 0.5 * (x[c, 0] - x[b, 0])
-        m1 = 0.5 * (x[c, 1] - x[b, 1])
-        m2 = 0.5 * (x[c, 2] - x[b, 2])
-        out[0] = 0.5 * (g1 * m2 - g2 * m1)
-        out[1] = 0.5 * (g2 * m0 - g0 * m2)
-        out[2] = 0.5 * (g0 * m1 - g1 * m0)
-    s = 0.0
+        return
+    b = others[0]
+    c = others[1]
+    # diagonals: centroid - x_a and midpoint(ac) - midpoint(ab) = (x_c - x_b) / 2
+    g0 = (x[b, 0] + x[c, 0] - 2.0 * x[a, 0]) / 3.0
+    g1 = (x[b, 1] + x[c, 1] - 2.0 * x[a, 1]) / 3.0
+    g2 = (x[b, 2] + x[c, 2] - 2.0 * x[a, 2]) / 3.0
+    m0 = 0.5 * (x[c, 0] - x[b, 0])
+    m1 = 0.5 * (x[c, 1] - x[b, 1])
+    m2 = 0.5 * (x[c, 2] - x[b, 2])
+    out[0] = 0.5 * (g1 * m2 - g2 * m1)
+    out[1] = 0.5 * (g2 * m0 - g0 * m2)
+    out[2] = 0.5 * (g0 * m1 - g1 * m0)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def dual_face_vector(x, X, a, others, reference, out):
+    """Outward spatial area vector of node a's dual boundary face on its facet (a and the
+    facet's other nodes ``others``) into out; returns its norm. 2D: the half-segment to the
+    midpoint; 3D: the quadrilateral (x_a, midpoint to others[0], centroid, midpoint to
+    others[1]). The order of ``others`` does not matter: the face is turned like its
+    reference area vector ``reference`` is turned against the same face at the reference
+    positions X (so that a rotation of the body cannot turn it inside out)."""
+    d = x.shape[1]
+    _raw_face_vector(X, a, others, out)
     dot = 0.0
     for k in range(d):
-        s += out[k] * out[k]
         dot += out[k] * reference[k]
-    if dot < 0.0:
-        for k in range(d):
+    _raw_face_vector(x, a, others, out)
+    s = 0.0
+    for k in range(d):
+        s += out[k] * out[k]
+        if dot < 0.0:
             out[k] = -out[k]
     return math.sqrt(s)
 

@@ -3,17 +3,49 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
+
+from .facets import closest_point
+
+
+def containing_cell(points, X, cells, eps=1e-12) -> np.ndarray:
+    """Index of a simplex (triangle in 2D, tetrahedron in 3D) of the mesh (X, cells) that
+    contains each of ``points`` (n, d), or -1. Barycentric coordinates >= -eps count as
+    inside. Candidates come from a k-d tree of the cell centroids (scipy.spatial) within the
+    largest centroid-to-vertex distance, so the cost is about linear."""
+    from scipy.spatial import cKDTree
+
+    points = np.atleast_2d(np.asarray(points, float))
+    X = np.asarray(X, float)
+    cells = np.asarray(cells, dtype=np.int64)
+    out = np.full(len(points), -1, np.int64)
+    if len(points) == 0 or len(cells) == 0:
+        return out
+    corners = X[cells]                                  # (m, d + 1, d)
+    centroid = corners.mean(axis=1)
+    reach = float(np.linalg.norm(corners - centroid[:, None, :], axis=2).max())
+    lists = cKDTree(centroid).query_ball_point(points, reach * (1 + 1e-9) + 1e-300)
+    counts = np.array([len(c) for c in lists])
+    if counts.sum() == 0:
+        return out
+    which = np.repeat(np.arange(len(points)), counts)
+    cand = np.concatenate([np.asarray(c, np.int64) for c in lists if len(c)])
+    # barycentric coordinates: T lam' = p - x0, T = [x1 - x0, ..., xd - x0]
+    T = np.swapaxes(corners[cand, 1:] - corners[cand, :1], 1, 2)      # (k, d, d)
+    rhs = points[which] - corners[cand, 0]
+    lam = np.linalg.solve(T, rhs[..., None])[..., 0]
+    lam = np.column_stack([1.0 - lam.sum(axis=1), lam])
+    hit = np.all(lam >= -eps, axis=1)
+    out[which[hit][::-1]] = cand[hit][::-1]              # the first hit of each point
+    return out
 
 
 def body_overlap(points_a, facets_a, points_b, cells_b, facets_b, tol) -> float:
     """How deep the boundary nodes of body a lie inside body b (0 if none is inside by more
-    than ``tol``). 2D: cells_b are triangles."""
-    from matplotlib.tri import Triangulation
-
+    than ``tol``); cells_b are triangles (2D) or tetrahedra (3D)."""
     nodes = np.unique(facets_a)
     pts = points_a[nodes]
-    tri = Triangulation(points_b[:, 0], points_b[:, 1], cells_b)
-    inside = tri.get_trifinder()(pts[:, 0], pts[:, 1]) >= 0
+    inside = containing_cell(pts, points_b, cells_b) >= 0
     if not inside.any():
         return 0.0
     depth = _distance_to_facets(pts[inside][:2000], points_b, facets_b).max()
@@ -29,12 +61,19 @@ def wall_overlap(points, point, normal) -> float:
 
 
 def _distance_to_facets(points, X, facets):
-    p = X[facets[:, 0]]
-    d = X[facets[:, 1]] - p
-    out = np.empty(len(points))
-    for i, q in enumerate(points):  # setup only, on the few nodes found inside
-        t = np.clip(np.einsum("ij,ij->i", q - p, d) / np.einsum("ij,ij->i", d, d), 0, 1)
-        out[i] = np.min(np.linalg.norm(p + t[:, None] * d - q, axis=1))
+    """Distance of each point to the nearest facet (segment or triangle)."""
+    return _nearest_facet_distance(np.ascontiguousarray(points, dtype=float),
+                                   np.ascontiguousarray(X, dtype=float),
+                                   np.ascontiguousarray(facets, dtype=np.int64))
+
+
+@njit(cache=True)
+def _nearest_facet_distance(points, X, facets):
+    out = np.full(points.shape[0], np.inf)
+    w = np.empty(facets.shape[1])
+    for i in range(points.shape[0]):  # setup only, on the few nodes found inside
+        for f in range(facets.shape[0]):
+            out[i] = min(out[i], closest_point(X, facets[f], points[i], w))
     return out
 
 
@@ -59,9 +98,10 @@ def find_overlaps(case) -> list[str]:
             continue
         a, b = (bodies[name] for name in spec.bodies)
         for first, second in ((a, b), (b, a)):
-            depth = body_overlap(first.mesh.points, boundary_facets(first.mesh.cells),
+            depth = body_overlap(first.mesh.points,
+                                 boundary_facets(first.mesh.cells, first.mesh.dim),
                                  second.mesh.points, second.mesh.cells,
-                                 boundary_facets(second.mesh.cells), tol)
+                                 boundary_facets(second.mesh.cells, second.mesh.dim), tol)
             if depth > 0:
                 problems.append(f"contact[{k}]: bodies {first.name!r} and {second.name!r} "
                                 f"overlap at the start (a node of {first.name!r} lies "
