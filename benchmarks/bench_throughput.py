@@ -43,26 +43,31 @@ import sys
 import time
 
 DEFAULT_SIZES = "10k,25k,100k,250k,1M"
-KERNELS_IN_STEP = ("compute_stress", "gradient", "limit_gradient", "assemble_rates",
-                   "rk_update")
+KERNELS_IN_STEP = ("compute_stress", "pack_velocity_and_stress", "limited_gradient",
+                   "assemble_rates", "rk_update")
 KERNELS_PER_STEP = ("stable_time_step", "state_is_bad", "monitors")
 
 
 # ------------------------------------------------------------------------------ the case
 
-def make_case(nodes_per_side: int, order: int) -> dict:
+def make_case(nodes_per_side: int, order: int, dim: int = 2) -> dict:
     n = nodes_per_side - 1
+    if dim == 2:
+        mesh = {"generator": "rectangle", "origin": [0.0, 0.0], "size": [0.1, 0.1],
+                "divisions": [n, n], "pattern": "alternate"}
+        velocity = ["10*sin(300*x)", "5*cos(300*y)"]
+    else:
+        mesh = {"generator": "box", "origin": [0.0] * 3, "size": [0.1] * 3,
+                "divisions": [n] * 3}
+        velocity = ["10*sin(300*x)", "5*cos(300*y)", "3*sin(200*z)"]
     return {
-        "title": f"throughput benchmark {nodes_per_side}x{nodes_per_side} nodes",
+        "title": f"throughput benchmark {nodes_per_side}^{dim} nodes",
         "run": {"end_time": 1.0, "cfl": 0.4, "order": order,
                 "limiter": "barth_jespersen" if order == 2 else "none"},
         "material": [{"name": "copper", "model": "neo_hookean", "density": 8930.0,
                       "youngs_modulus": 585e6, "poisson_ratio": 0.495}],
-        "body": [{"name": "block", "material": "copper",
-                  "velocity": ["10*sin(300*x)", "5*cos(300*y)"],
-                  "mesh": {"generator": "rectangle", "origin": [0.0, 0.0],
-                           "size": [0.1, 0.1], "divisions": [n, n],
-                           "pattern": "alternate"}}],
+        "body": [{"name": "block", "material": "copper", "velocity": velocity,
+                  "mesh": mesh}],
     }
 
 
@@ -76,8 +81,8 @@ def parse_size(text: str) -> int:
     return int(round(float(text) * scale))
 
 
-def side_for(nodes: int) -> int:
-    return max(3, int(round(math.sqrt(nodes))))
+def side_for(nodes: int, dim: int = 2) -> int:
+    return max(3, int(round(nodes ** (1.0 / dim))))
 
 
 def auto_steps(nodes: int) -> int:
@@ -219,7 +224,7 @@ def summarize(n: int, steps: int, blocks: list[list[float]], breakdowns: list[di
 
 
 def worker(nodes_requested: int, threads: list[int], steps: int | None, orders: list[int],
-           repeats: int):
+           repeats: int, dim: int = 2):
     """Runs in a fresh subprocess for one size; prints one JSON object on stdout."""
     import numba
     import numpy as np
@@ -230,7 +235,7 @@ def worker(nodes_requested: int, threads: list[int], steps: int | None, orders: 
 
     # warm-up on a tiny case: loads every kernel from the numba cache (or compiles it)
     for order in orders:
-        tiny = FVStepper(impactfv.load_case(make_case(8, order)))
+        tiny = FVStepper(impactfv.load_case(make_case(8 if dim == 2 else 4, order, dim)))
         for t in threads:
             numba.set_num_threads(t)
             for _ in range(2):
@@ -241,9 +246,9 @@ def worker(nodes_requested: int, threads: list[int], steps: int | None, orders: 
     baseline = maxrss_bytes()
     baseline_now = current_rss_bytes()
 
-    side = side_for(nodes_requested)
+    side = side_for(nodes_requested, dim)
     t0 = time.perf_counter()
-    case = impactfv.load_case(make_case(side, orders[0]))
+    case = impactfv.load_case(make_case(side, orders[0], dim))
     t1 = time.perf_counter()
     solver = FVStepper(case)
     t2 = time.perf_counter()
@@ -354,8 +359,9 @@ def report(results: list[dict], info: dict) -> str:
     names.sort(key=lambda k: order_key.get(k, len(order_key)))
     in_step = [k for k in names if k not in KERNELS_PER_STEP]
     outside = [k for k in names if k in KERNELS_PER_STEP]
-    short = {"compute_stress": "stress", "gradient": "vel_grad",
-             "limit_gradient": "limiter", "assemble_rates": "assemble", "rk_update": "rk_upd",
+    short = {"compute_stress": "stress", "pack_velocity_and_stress": "pack",
+             "limited_gradient": "grad+limit", "assemble_rates": "assemble",
+             "rk_update": "rk_upd",
              "stable_time_step": "stable_dt", "state_is_bad": "check", "monitors": "monitors"}
     out.append("Breakdown, ms per step (% of the run-loop step = step + stable_dt + check + "
                "monitors; fastest block of --repeats, kernels timed through wrappers);")
@@ -449,12 +455,14 @@ def main(argv=None) -> int:
                         "(default 3)")
     p.add_argument("--orders", default="2,1", help="spatial orders (default 2,1)")
     p.add_argument("--json", help="also write all measurements to this JSON file")
+    p.add_argument("--dim", type=int, default=2, choices=(2, 3),
+                   help="2: a square of triangles (default); 3: a cube of tetrahedra")
     p.add_argument("--worker", type=int, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     threads = [int(t) for t in args.threads.split(",") if t.strip()]
     orders = [int(o) for o in args.orders.split(",") if o.strip()]
     if args.worker is not None:
-        worker(args.worker, threads, args.steps, orders, args.repeats)
+        worker(args.worker, threads, args.steps, orders, args.repeats, args.dim)
         return 0
     sizes = sorted(parse_size(s) for s in args.sizes.split(",") if s.strip())
     info = machine()
@@ -464,7 +472,7 @@ def main(argv=None) -> int:
         t0 = time.perf_counter()
         cmd = [sys.executable, os.path.abspath(__file__), "--worker", str(nodes),
                "--threads", args.threads, "--orders", args.orders,
-               "--repeats", str(args.repeats)]
+               "--repeats", str(args.repeats), "--dim", str(args.dim)]
         if args.steps:
             cmd += ["--steps", str(args.steps)]
         busy0, own0 = busy_cpu_seconds(), children_cpu_seconds()
