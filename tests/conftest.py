@@ -1,8 +1,15 @@
 """Shared test fixtures: one definition per material and the small cases built on them."""
 
 import copy
+import os
 import subprocess
 import sys
+
+# one numba thread unless a test is about threads: waiting threads spin at every barrier,
+# and on a busy machine a parallel kernel on a small mesh then takes milliseconds
+os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np
 import pytest

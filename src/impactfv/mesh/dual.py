@@ -122,7 +122,7 @@ def time_step_length(points, edges, volumes, facets, facet_vectors, area_vectors
     """Length h_a of the time step dt = cfl min_a h_a lambda_min / c_p (docs/theory.md, "Time
     step").
 
-    2D: the shortest edge at node a, and at a boundary node at most 4 Omega_a / A_a, with A_a
+    The shortest edge at node a, and at a boundary node at most 4 Omega_a / A_a, with A_a
     the area of its dual boundary faces. The second bound is the stability of the boundary
     flux: it relaxes a boundary node's traction at the rate c_p A_a / Omega_a (p-wave
     impedance), a real eigenvalue for which the two-stage Runge-Kutta scheme needs
@@ -131,12 +131,15 @@ def time_step_length(points, edges, volumes, facets, facet_vectors, area_vectors
     node has a small control volume, such as a corner node with a single triangle
     (4 Omega / A = 2h/3 on a right-angled corner of legs h).
 
-    3D: at most also 4 Omega_a / (A_int,a + 2 A_a), A_int,a the area of the node's interior
-    dual faces: Gershgorin's bound on the upwind flux's decay rate at node a,
-    c_p (A_int / 2 + A) / Omega, with which the interior limit is cfl = 0.5 as in 2D. On
-    tetrahedra the shortest edge overestimates it (by 15-35% inside a box of Kuhn cells and
-    up to 2.5 times at its edges), and free blocks at nu = 0.495 blew up at cfl 0.35 with the
-    2D rule; in 2D it lies within 17% of the shortest edge inside, and the 2D rule is kept.
+    3D: an interior node's h_a is at most 4 Omega_a / A_int,a, A_int,a the area of its dual
+    faces: the first-order upwind flux relaxes it at the rate c_p A_int / (2 Omega), the
+    interior counterpart of the boundary bound. On triangles it is never below the shortest
+    edge of the regular patterns (the 2D rule is kept as it was); on tetrahedra the shortest
+    edge overestimates it (4 Omega / A_int = 0.72-0.88 h inside a box of Kuhn cells of edge h,
+    0.62 h on a gmsh mesh), and a free block at nu = 0.495 blew up at cfl 0.35 with the
+    shortest edge alone. With this bound the exact stability limit of the linearised scheme
+    is cfl 0.43-0.46 (order 1) and 0.50-0.55 (order 2) on those meshes, against 0.42 and
+    0.50 for the 2D rule on triangles (tests/test_time_step.py).
     """
     n = len(points)
     length = np.linalg.norm(points[edges[:, 1]] - points[edges[:, 0]], axis=1)
@@ -157,8 +160,9 @@ def time_step_length(points, edges, volumes, facets, facet_vectors, area_vectors
         face = np.linalg.norm(area_vectors, axis=1)
         interior_area = (np.bincount(edges[:, 0], face, minlength=n)
                          + np.bincount(edges[:, 1], face, minlength=n))
-        node_length = np.minimum(node_length,
-                                 4.0 * volumes / (interior_area + 2.0 * boundary_area))
+        inside = ~on_boundary
+        node_length[inside] = np.minimum(node_length[inside],
+                                         4.0 * volumes[inside] / interior_area[inside])
     return node_length
 
 
