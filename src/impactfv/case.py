@@ -34,6 +34,17 @@ class _Strict(BaseModel):
 #: load_case checks every vector against it)
 Vector = Annotated[list[float], Field(min_length=2, max_length=3)]
 Counts = Annotated[list[int], Field(min_length=2, max_length=3)]
+#: a load component: a number, or an expression of x, y, z (reference position, m) and t (s)
+Load = Union[float, str]
+LoadVector = Annotated[list[Load], Field(min_length=2, max_length=3)]
+#: variables of load expressions, in the order they are passed
+LOAD_VARIABLES = ("x", "y", "z", "t")
+
+
+def _finite_load(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError("must be finite")
+    return value
 
 
 class RunSettings(_Strict):
@@ -132,9 +143,11 @@ class MeshSpec(_Strict):
 
 
 class VelocityComponents(_Strict):
-    x: Optional[float] = Field(None, allow_inf_nan=False)
-    y: Optional[float] = Field(None, allow_inf_nan=False)
-    z: Optional[float] = Field(None, allow_inf_nan=False)
+    x: Optional[Load] = None
+    y: Optional[Load] = None
+    z: Optional[Load] = None
+
+    _finite = field_validator("x", "y", "z")(classmethod(lambda cls, v: _finite_load(v)))
 
     def components(self, dim: int) -> tuple:
         """The prescribed value of each of the ``dim`` components (None: not prescribed)."""
@@ -144,7 +157,8 @@ class VelocityComponents(_Strict):
 class BoundarySpec(_Strict):
     region: str
     velocity: Optional[VelocityComponents] = None
-    traction: Optional[Vector] = None
+    traction: Optional[LoadVector] = None
+    amplitude: Optional[list[tuple[float, float]]] = Field(None, min_length=1)
 
     @model_validator(mode="after")
     def _one_condition(self):
@@ -153,9 +167,20 @@ class BoundarySpec(_Strict):
         if self.velocity is not None and all(
                 c is None for c in (self.velocity.x, self.velocity.y, self.velocity.z)):
             raise ValueError("velocity needs at least one of x, y, z")
-        if self.traction is not None and not all(map(math.isfinite, self.traction)):
-            raise ValueError("traction must be finite")
+        if self.traction is not None:
+            for value in self.traction:
+                _finite_load(value)
+        if self.amplitude is not None:
+            _check_amplitude(self.amplitude)
         return self
+
+
+def _check_amplitude(table):
+    times = [t for t, _ in table]
+    if not all(math.isfinite(t) and math.isfinite(a) for t, a in table):
+        raise ValueError("amplitude: times and values must be finite")
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ValueError("amplitude: times must increase strictly, [[t0, a0], [t1, a1], ...]")
 
 
 class BodySpec(_Strict):
@@ -164,6 +189,15 @@ class BodySpec(_Strict):
     velocity: Any = (0.0, 0.0)
     mesh: MeshSpec
     boundary: list[BoundarySpec] = []
+    body_force: Optional[LoadVector] = Field(None, description="acceleration, m/s^2 (seed "
+                                             "eq. 9a's f_R per unit mass), e.g. gravity")
+
+    @field_validator("body_force")
+    @classmethod
+    def _finite_body_force(cls, value):
+        for item in value or ():
+            _finite_load(item)
+        return value
 
     @field_validator("velocity")
     @classmethod
@@ -332,9 +366,24 @@ def _check_length(vector, dim: int, key: str):
 
 
 def _check_lengths(body: BodySpec, i: int, dim: int, source: str):
-    """Every vector of a body has as many components as its mesh has dimensions."""
+    """Every vector of a body has as many components as its mesh has dimensions, and its
+    load expressions are valid."""
     if not callable(body.velocity):
         _check_length(body.velocity, dim, f"{source}: body[{i}].velocity")
+    _check_length(body.body_force, dim, f"{source}: body[{i}].body_force")
+    names = LOAD_VARIABLES[:dim] + ("t",)
+    for c, item in zip("xyz", body.body_force or ()):
+        if isinstance(item, str):
+            compile_expression(item, f"{source}: body[{i}].body_force.{c}", names)
+    for j, bc in enumerate(body.boundary):
+        key = f"{source}: body[{i}].boundary[{j}]"
+        if bc.velocity is not None:
+            for c, item in zip("xyz", bc.velocity.components(3)):
+                if isinstance(item, str):
+                    compile_expression(item, f"{key}.velocity.{c}", names)
+        for c, item in zip("xyz", bc.traction or ()):
+            if isinstance(item, str):
+                compile_expression(item, f"{key}.traction.{c}", names)
     for j, bc in enumerate(body.boundary):
         key = f"{source}: body[{i}].boundary[{j}]"
         _check_length(bc.traction, dim, key + ".traction")

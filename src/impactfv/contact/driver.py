@@ -88,6 +88,7 @@ class ContactSystem:
         # nodes all of whose boundary faces are contact faces (not the ends of a contact face)
         self.flat = np.diff(self.face_start) == np.bincount(disc.bface_node, minlength=n)
         self.flat &= np.diff(self.face_start) > 0
+        self.time = 0.0                         # time of the current stage
         self.state = np.zeros(n, np.int8)       # OPEN, STICK or SLIP
         self.memory = np.zeros(n, np.int8)      # in contact at the end of the previous step
         self.phi = np.zeros(n)                  # fraction of this step in contact
@@ -138,11 +139,13 @@ class ContactSystem:
         return Surface(np.unique(facets), facets, faces, facet_faces)
 
     # ------------------------------------------------------------------ per stage
-    def stage(self, x, v, F, sigma, grad, reconstructed, dt, stage_index):
+    def stage(self, x, v, F, sigma, grad, reconstructed, dt, stage_index, time=0.0):
         """Contact states and forces for the current stage, from the state's velocities and
         stresses (before the flux assembly); the gradients of the nodes in contact inside a
         contact face are dropped when the scheme reconstructs. Which nodes touch
-        during the step, and when, is decided in the first stage and kept in the second."""
+        during the step, and when, is decided in the first stage and kept in the second.
+        ``time`` is the stage's time (where moving walls are)."""
+        self.time = time
         RS.reset_surface(self.surface_nodes, self.faces, self.state, self.force_acc,
                          self.tstar_n, self.face_weight, self.face_velocity, self.length_sum,
                          self.motion_sum, self.traction_sum)
@@ -176,8 +179,9 @@ class ContactSystem:
         apply = stage_index >= 0
         if pair.wall_normal is not None:
             slave = pair.surfaces[0].nodes
-            gmin = wall_gaps(x, slave, pair.wall_point, pair.wall_normal, self.gap,
-                             self.normal)
+            # a moving wall translates rigidly with its velocity
+            point = pair.wall_point + pair.wall_velocity * self.time
+            gmin = wall_gaps(x, slave, point, pair.wall_normal, self.gap, self.normal)
             if apply:
                 if stage_index == 0:
                     RS.wall_fractions(v, slave, self.gap, self.normal, pair.wall_velocity,
@@ -243,14 +247,21 @@ class ContactSystem:
                 return count
             self._pieces(2 * count)
 
-    def apply(self, force, dF):
+    def apply(self, force, dF, fixed_value):
         disc = self.disc
         RS.apply_contact(self.surface_nodes, self.faces, disc.bface_node, disc.bface_C,
                          self.face_weight, self.face_velocity, self.state, self.xdot,
-                         self.force_acc, disc.fixed_mask, disc.fixed_value, force, dF)
+                         self.force_acc, disc.fixed_mask, fixed_value, force, dF)
 
-    def end_step(self, x, v, F):
+    def wall_power(self, stage_index) -> float:
+        """Power of the walls' forces on the bodies in this stage: F . v_wall (zero for walls
+        at rest; contact between bodies does no external work)."""
+        return float(sum(pair.fsum[stage_index] @ pair.wall_velocity for pair in self.pairs
+                         if pair.wall_normal is not None))
+
+    def end_step(self, x, v, F, time=0.0):
         """Remember who is in contact; measure the gaps at the new positions."""
+        self.time = time
         self.memory[self.surface_nodes] = self.state[self.surface_nodes]
         if not self._finite(x):
             return

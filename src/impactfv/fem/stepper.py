@@ -313,11 +313,20 @@ class FEStepper:
                 mesh = rectangle_quads(spec.origin, spec.size, spec.divisions)
             mask = np.zeros(mesh.points.shape, bool)
             value = np.zeros(mesh.points.shape)
+            if body.spec.body_force is not None:
+                raise InputError(f"{case.source}: body[{ib}].body_force: body forces are not "
+                                 f"supported by method {method!r} (use method = \"fv\")")
             for j, bc in enumerate(body.boundary):
                 if bc.traction is not None:
                     raise InputError(f"{case.source}: body[{ib}].boundary[{j}]: traction "
                                      f"boundaries are not supported by method {method!r} "
                                      "(use method = \"fv\")")
+                varying = bc.amplitude is not None or any(
+                    isinstance(c, str) for c in bc.velocity.components(2))
+                if varying:
+                    raise InputError(f"{case.source}: body[{ib}].boundary[{j}].velocity: "
+                                     "velocities that change in time or space are not "
+                                     f"supported by method {method!r} (use method = \"fv\")")
                 nodes = np.unique(mesh.regions[bc.region])
                 for c, comp in enumerate(bc.velocity.components(2)):
                     if comp is not None:

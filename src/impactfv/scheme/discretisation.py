@@ -59,11 +59,9 @@ class Discretisation:
     bface_facet: np.ndarray     # (h,) global index of its facet
     bface_bc: np.ndarray        # (h,) row of the boundary-condition table (0: traction-free)
     bc_fixed: np.ndarray        # (nbc, d) bool: velocity component prescribed
-    bc_velocity: np.ndarray     # (nbc, d)
-    bc_traction: np.ndarray     # (nbc, d)
+    bc_nodes: list              # per row of bc_fixed, the global nodes of its region
     fixed_mask: np.ndarray      # (n, d) bool: strongly prescribed nodal velocity components
-    fixed_value: np.ndarray     # (n, d)
-    v0: np.ndarray              # (n, d) initial velocity
+    v0: np.ndarray              # (n, d) initial velocity (before prescribed values)
     edge_offsets: np.ndarray = None  # (nblocks + 2,) edges grouped by node block, then cross
     node_edge_start: np.ndarray = None  # (n + 1,) each node's edges in the node_* lists
     node_neighbour: np.ndarray = None   # (2m,) the other end b of each edge of node a
@@ -104,8 +102,8 @@ def discretise(case: Case) -> Discretisation:
                              "edges", "C", "v0", "bface_node", "bface_others", "bface_C",
                              "bface_bc", "bface_facet")}
     layouts = []
-    bc_fixed, bc_velocity, bc_traction = [[False] * dim], [[0.0] * dim], [[0.0] * dim]
-    fixed = []  # (global nodes, component, value), in case order: later entries win
+    bc_fixed, bc_nodes = [[False] * dim], [np.zeros(0, np.int64)]
+    fixed = []  # (global nodes, component): the strongly prescribed nodal components
     offset = 0
     n_facets = 0
     for ib, body in enumerate(case.bodies):
@@ -127,17 +125,15 @@ def discretise(case: Case) -> Discretisation:
         for spec in body.boundary:
             region = mesh.regions[spec.region]
             rows = facet_index(facets, region, f"region {spec.region!r}")
-            fix, vel, trac = [False] * dim, [0.0] * dim, [0.0] * dim
+            fix = [False] * dim
+            nodes = offset + np.unique(region)
             if spec.velocity is not None:
                 for c, value in enumerate(spec.velocity.components(dim)):
                     if value is not None:
-                        fix[c], vel[c] = True, value
-                        fixed.append((offset + np.unique(region), c, value))
-            if spec.traction is not None:
-                trac = list(spec.traction)
+                        fix[c] = True
+                        fixed.append((nodes, c))
             bc_fixed.append(fix)
-            bc_velocity.append(vel)
-            bc_traction.append(trac)
+            bc_nodes.append(nodes)
             facet_bc[rows] = len(bc_fixed) - 1
         for k in range(dim):
             parts["bface_node"].append(facets[:, k] + offset)
@@ -154,12 +150,8 @@ def discretise(case: Case) -> Discretisation:
     X = cat["X"]
     edges, C, edge_offsets = partition_edges(cat["edges"].astype(np.int64), cat["C"], offset)
     fixed_mask = np.zeros((offset, dim), bool)
-    fixed_value = np.zeros((offset, dim))
-    for nodes, c, value in fixed:
+    for nodes, c in fixed:
         fixed_mask[nodes, c] = True
-        fixed_value[nodes, c] = value
-    v0 = cat["v0"]
-    v0[fixed_mask] = fixed_value[fixed_mask]
     half = 0.5 * (X[edges[:, 1]] - X[edges[:, 0]])
     node_edge_start, node_neighbour, node_C, node_half = node_edge_lists(edges, C, half, offset)
     # boundary faces sorted by node for locality of the scatter
@@ -175,9 +167,8 @@ def discretise(case: Case) -> Discretisation:
         bface_others=np.ascontiguousarray(cat["bface_others"][order], dtype=np.int64),
         bface_C=cat["bface_C"][order], bface_facet=cat["bface_facet"][order],
         bface_bc=cat["bface_bc"][order].astype(np.int32),
-        bc_fixed=np.array(bc_fixed, bool), bc_velocity=np.array(bc_velocity, float),
-        bc_traction=np.array(bc_traction, float), fixed_mask=fixed_mask,
-        fixed_value=fixed_value, v0=v0, edge_offsets=edge_offsets,
+        bc_fixed=np.array(bc_fixed, bool), bc_nodes=bc_nodes, fixed_mask=fixed_mask,
+        v0=cat["v0"], edge_offsets=edge_offsets,
         body_start=np.array([b.start for b in layouts] + [offset], np.int64), bodies=layouts)
 
 

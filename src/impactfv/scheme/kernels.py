@@ -249,13 +249,20 @@ def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len
 @njit(cache=True, parallel=True)
 def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                    edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
-                   bc_velocity, bc_traction, fixed_mask, fixed_value, use_reconstruction,
-                   stress_reconstructed, upwind_geometric, bface_contact_weight, force, dF,
-                   dim):
-    """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt.
+                   prescribed_velocity, prescribed_traction, use_reconstruction,
+                   stress_reconstructed,
+                   upwind_geometric, bface_contact_weight, force, dF, power, bc_force, dim):
+    """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt; into
+    power[0] the power of the boundary tractions, sum over the dual boundary faces of
+    t^C . v^C |C| (the Riemann states of the faces: zero on free faces, the work of a clamp or
+    of a prescribed traction elsewhere); and into bc_force (nbc, d) the force of each
+    boundary condition's faces on the body.
 
     A dual boundary face takes its boundary flux for the part of the face and of the step it
-    is not in contact (1 - bface_contact_weight); the contact module adds the rest.
+    is not in contact (1 - bface_contact_weight); the contact module adds the rest. It
+    prescribes the components its
+    boundary condition bc_fixed[bface_bc] prescribes (velocity) or not (traction).
+    prescribed_velocity and prescribed_traction (h, d) hold their values.
     """
     d = len(dim)
     own, denominator = closure
@@ -284,6 +291,10 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     tC = local_vector(d)
     fix = local_vector(d)
     given = local_vector(d)
+    boundary_power = 0.0
+    for k in range(bc_force.shape[0]):
+        for i in range(d):
+            bc_force[k, i] = 0.0
     for h in range(bface_node.shape[0]):
         free = 1.0 - bface_contact_weight[h]
         if free == 0.0:
@@ -319,15 +330,18 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
         # region at a corner) is held on all its faces
         for i in range(d):
             fix[i] = 1.0 if bc_fixed[bc, i] else 0.0
-            given[i] = bc_velocity[bc, i]
-        boundary_state(vi, ti, zp, zs, n, fix, given, bc_traction[bc], Z, rhs, vC, tC)
+            given[i] = prescribed_velocity[h, i]
+        boundary_state(vi, ti, zp, zs, n, fix, given, prescribed_traction[h], Z, rhs, vC, tC)
         for i in range(d):
             force[a, i] += free * tC[i] * ln
+            bc_force[bc, i] += free * tC[i] * ln
             # the F equation's velocity: the prescribed one, or from the traction with the
             # p-wave impedance in every direction (as in the interior, riemann.upwind_velocity)
             vF = vC[i] if fix[i] else vi[i] + (tC[i] - ti[i]) / zp
             for J in range(d):
                 dF[a, i, J] += free * vF * bface_C[h, J]
+            boundary_power += free * tC[i] * vC[i] * ln
+    power[0] = boundary_power
 
 
 @njit(cache=True, parallel=True)

@@ -15,6 +15,7 @@ from ..errors import SimulationError
 from . import kernels as K
 from .discretisation import Discretisation, discretise
 from .limiters import IDS as LIMITER_IDS
+from .loads import Loads
 from .time import STAGES
 
 
@@ -35,8 +36,11 @@ class FVStepper:
         self.upwind_geometric = case.run.geometric_flux == "upwind"
         # the upwind geometric flux needs the reconstructed tractions to be second order
         self.stress_reconstructed = self.order == 2 and self.upwind_geometric
+        self.loads = Loads(case, m)
+        self.time = 0.0
         # state
         self.v = m.v0.copy()
+        self.v[m.fixed_mask] = self.loads.fixed_value[m.fixed_mask]
         self.F = np.zeros((n, d, d))
         for i in range(d):
             self.F[:, i, i] = 1.0
@@ -51,13 +55,19 @@ class FVStepper:
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
+        self.mass = m.material_table[m.node_material, 0] * m.volume
         self.dt = 0.0
+        # energy bookkeeping: the power of the boundary tractions and body forces per stage
+        self.power = np.zeros(1)
+        self.stage_power = np.zeros(2)
+        self.external_work = 0.0
+        self._reactions_setup()
         if case.contacts:
             from ..contact.driver import ContactSystem
             self.contact = ContactSystem(case, m)
             self.contact_state, self.contact_xdot = self.contact.state, self.contact.xdot
             self.face_contact_weight = self.contact.face_weight
-            self.contact.end_step(self.x, self.v, self.F)  # initial gaps
+            self.contact.end_step(self.x, self.v, self.F, 0.0)  # initial gaps
         else:
             self.contact = None
             self.contact_state = np.zeros(n, np.int8)
@@ -68,10 +78,41 @@ class FVStepper:
     def body_names(self) -> list[str]:
         return [b.name for b in self.disc.bodies]
 
+    def _reactions_setup(self):
+        """Each boundary entry with a prescribed velocity reports the force its support
+        exerts on the body (history columns reaction_<region>_f<c>)."""
+        import scipy.sparse as sp
+
+        m = self.disc
+        rows, names = [], []
+        for ib, body in enumerate(self.case.bodies):
+            for spec in body.boundary:
+                rows.append(spec)
+                names.append(spec.region)
+        self.reaction_rows = [k for k, spec in enumerate(rows, start=1)
+                              if m.bc_fixed[k].any()]
+        seen = {}
+        self.reaction_names = []
+        for k in self.reaction_rows:
+            base = names[k - 1]
+            seen[base] = seen.get(base, 0) + 1
+            self.reaction_names.append(base if seen[base] == 1 else f"{base}{seen[base]}")
+        n, d = m.n_nodes, m.dim
+        if self.reaction_rows:
+            cols = [m.bc_nodes[k] for k in self.reaction_rows]
+            self.reaction_sum = sp.csr_matrix(
+                (np.ones(sum(map(len, cols))),
+                 (np.repeat(np.arange(len(cols)), list(map(len, cols))), np.concatenate(cols))),
+                shape=(len(cols), n))
+            self.reaction_mask = np.array([m.bc_fixed[k] for k in self.reaction_rows], float)
+        self.stage_reaction = np.zeros((2, len(self.reaction_rows), d))
+        self.bc_force = np.zeros((len(m.bc_fixed), d))
+        self.reaction = np.zeros((len(self.reaction_rows), d))
+
     # ------------------------------------------------------------------ one step
     def rates(self, stage=0):
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
-        state."""
+        state, at the stage's time (the loads are brought to it by the caller)."""
         m = self.disc
         K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
         if self.stress_reconstructed:
@@ -81,18 +122,32 @@ class FVStepper:
                                m.node_half, m.bface_start, m.bface_others, m.bface_C,
                                m.closure, m.volume, self.limiter, self.grad, self.dim,
                                self.components)
+        loads = self.loads
+        stage_time = self.time + (self.dt if stage else 0.0)
         if self.contact is not None:
             self.contact.stage(self.x, self.v, self.F, self.sigma, self.grad, self.order == 2,
-                               self.dt, stage)
+                               self.dt, stage, stage_time)
         K.assemble_rates(self.v, self.F, self.sigma, self.grad, m.node_material, m.material_table,
                          m.edges, m.C, m.C_len, m.half, m.edge_offsets, m.bface_node,
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
-                         m.bc_velocity, m.bc_traction, m.fixed_mask, m.fixed_value,
-                         self.order == 2,
+                         loads.face_velocity, loads.face_traction, self.order == 2,
                          self.stress_reconstructed, self.upwind_geometric,
-                         self.face_contact_weight, self.force, self.dF, self.dim)
+                         self.face_contact_weight, self.force, self.dF, self.power,
+                         self.bc_force, self.dim)
         if self.contact is not None:
-            self.contact.apply(self.force, self.dF)
+            self.contact.apply(self.force, self.dF, loads.fixed_value)
+        power = self.power[0]
+        if loads.has_body_force:
+            self.force += self.mass[:, None] * loads.acceleration
+            power += float(np.einsum("i,ij,ij->", self.mass, loads.acceleration, self.v))
+        if self.contact is not None:
+            power += self.contact.wall_power(stage)
+        self.stage_power[stage] = power
+        if self.reaction_rows:
+            # the support acts through the Riemann tractions of its faces and, where the
+            # prescribed components are imposed on the nodes, by cancelling what is left
+            self.stage_reaction[stage] = self.reaction_mask * (
+                self.bc_force[self.reaction_rows] - self.reaction_sum @ self.force)
 
     def stable_dt(self) -> float:
         m = self.disc
@@ -101,18 +156,33 @@ class FVStepper:
 
     def step(self, dt: float):
         m = self.disc
+        loads = self.loads
         self.v0[:] = self.v
         self.F0[:] = self.F
         self.x0[:] = self.x
         self.dt = dt
+        t = self.time
+        if self.reaction_rows:
+            held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
         for stage, alpha in enumerate(STAGES):
+            loads.at(t + (dt if stage else 0.0))
             self.rates(stage)
+            # both stages end at t + dt (Heun), where the prescribed velocities are imposed
+            loads.at(t + dt)
             K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
                         self.force, self.dF, self.contact_state, self.contact_xdot,
                         m.node_material, m.material_table, m.volume, m.fixed_mask,
-                        m.fixed_value, self.dim)
+                        loads.fixed_value, self.dim)
+        self.time = t + dt
+        self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
+        if self.reaction_rows:
+            # Runge-Kutta mean of the stages, plus the force that changes the momentum of
+            # the held nodes when the prescribed velocity changes
+            change = (self.reaction_sum @ (self.mass[:, None] * loads.fixed_value) - held) / dt
+            self.reaction[:] = 0.5 * (self.stage_reaction[0] + self.stage_reaction[1]) \
+                + self.reaction_mask * change
         if self.contact is not None:
-            self.contact.end_step(self.x, self.v, self.F)
+            self.contact.end_step(self.x, self.v, self.F, self.time)
 
     def check(self, step: int, t: float):
         """Raise SimulationError naming the first node with a non-finite state or J <= 0."""
@@ -132,8 +202,12 @@ class FVStepper:
 
     # ------------------------------------------------------------------ monitors and fields
     def history_columns(self) -> list[str]:
-        momentum = [f"momentum_{c}" for c in "xyz"[:self.disc.dim]]
-        return (["kinetic_energy", "strain_energy", "total_energy", *momentum]
+        components = "xyz"[:self.disc.dim]
+        momentum = [f"momentum_{c}" for c in components]
+        reactions = [f"reaction_{name}_f{c}" for name in self.reaction_names
+                     for c in components]
+        return (["kinetic_energy", "strain_energy", "total_energy", *momentum,
+                 "external_work", "energy_balance", *reactions]
                 + (self.contact.history_columns() if self.contact is not None else []))
 
     def history_row(self) -> list[float]:
@@ -142,7 +216,11 @@ class FVStepper:
                    self.monitor_buf, self.dim)
         kinetic, strain, *momentum = self.monitor_buf.sum(axis=0)
         extra = self.contact.history_values() if self.contact is not None else []
-        return [kinetic, strain, kinetic + strain, *momentum, *extra]
+        # the energy balance: what the body holds minus the work done on it; it falls by the
+        # energy the scheme dissipates (upwinding at fronts and at the contacts)
+        balance = kinetic + strain - self.external_work
+        return [kinetic, strain, kinetic + strain, *momentum, self.external_work, balance,
+                *self.reaction.ravel(), *extra]
 
     def point_data(self) -> dict[str, np.ndarray]:
         m = self.disc
@@ -186,7 +264,8 @@ class FVStepper:
     # ------------------------------------------------------------------ checkpoints
     def state_arrays(self) -> dict[str, np.ndarray]:
         """Everything a restart needs besides the case."""
-        arrays = {"v": self.v, "F": self.F, "x": self.x}
+        arrays = {"v": self.v, "F": self.F, "x": self.x, "time": np.array(self.time),
+                  "external_work": np.array(self.external_work), "reaction": self.reaction}
         if self.contact is not None:
             arrays["contact_memory"] = self.contact.memory
         return arrays
@@ -199,6 +278,10 @@ class FVStepper:
                 raise ValueError(f"{name} has shape {arrays[name].shape}, the case gives "
                                  f"{target.shape}")
             target[:] = arrays[name]
+        self.time = float(arrays["time"])
+        self.external_work = float(arrays["external_work"])
+        self.reaction[:] = arrays["reaction"]
+        self.loads.at(self.time)
         if self.contact is not None:
-            self.contact.end_step(self.x, self.v, self.F)
+            self.contact.end_step(self.x, self.v, self.F, self.time)
             self.contact.memory[:] = arrays["contact_memory"]
