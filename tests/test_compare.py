@@ -178,7 +178,7 @@ def test_q4md_refuses_file_mesh(tmp_path):
     meshio.write(tmp_path / "sq.vtu", meshio.Mesh(pts, [("triangle", [[0, 1, 3], [0, 3, 2]])]))
     case = {"run": {"end_time": 1e-7, "method": "fem-q4md"}, "material": [MAT],
             "body": [{"name": "b", "material": "copper", "mesh": {"file": "sq.vtu"}}]}
-    with pytest.raises(InputError, match="rectangle-generated"):
+    with pytest.raises(InputError, match="needs quadrilaterals"):
         run(load_case(case, base_dir=tmp_path), progress=False)
     case["run"]["method"] = "fem-t3"
     assert run(load_case(case, base_dir=tmp_path), progress=False).summary["steps"] > 0

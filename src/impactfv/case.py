@@ -91,6 +91,8 @@ class MeshSpec(_Strict):
     radius: Optional[float] = Field(None, allow_inf_nan=False)
     rings: Optional[int] = None
     file: Optional[str] = None
+    scale: float = Field(1.0, gt=0, allow_inf_nan=False,
+                         description="factor applied to the mesh coordinates (1e-3: mm)")
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -278,9 +280,8 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
         mesh = _build_mesh(b.mesh, base, f"{name}: body[{i}].mesh")
         for j, bc in enumerate(b.boundary):
             if bc.region not in mesh.regions:
-                raise InputError(f"{name}: body[{i}].boundary[{j}].region: unknown region "
-                                 f"{bc.region!r} (the mesh has: "
-                                 f"{', '.join(sorted(mesh.regions)) or 'none'})")
+                raise InputError(f"{name}: body[{i}].boundary[{j}].region: "
+                                 f"{_unknown_region(bc.region, [mesh])}")
         velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity")
         case.bodies.append(Body(b, case.materials[b.material], mesh, velocity))
     meshes = {b.name: b.mesh for b in case.bodies}
@@ -288,9 +289,21 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
         known = set().union(*(meshes[n].regions for n in c.bodies))
         for region in c.regions or ():
             if region not in known:
-                raise InputError(f"{name}: contact[{k}].regions: unknown region {region!r} "
-                                 f"(the bodies have: {', '.join(sorted(known)) or 'none'})")
+                raise InputError(f"{name}: contact[{k}].regions: "
+                                 f"{_unknown_region(region, [meshes[n] for n in c.bodies])}")
     return case
+
+
+def _unknown_region(region: str, meshes) -> str:
+    """Why ``region`` names none of the regions of ``meshes``, and which they have."""
+    known = sorted(set().union(*(m.regions for m in meshes)))
+    for m in meshes:
+        if region in m.skipped_sets:
+            return (f"{region!r} is a {m.skipped_sets[region]}, not a boundary region (the "
+                    f"mesh has: {', '.join(known) or 'none'})")
+    close = difflib.get_close_matches(region, known, n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    return f"unknown region {region!r} ({hint}the mesh has: {', '.join(known) or 'none'})"
 
 
 def _refuse_booleans(data, source: str, path: str = ""):
@@ -339,6 +352,8 @@ def _build_mesh(spec: MeshSpec, base: Path, key: str) -> Mesh:
             path = base / path
         mesh = read_mesh(path)
         source = str(path)
+    if spec.scale != 1.0:
+        mesh.points = np.asarray(mesh.points, dtype=float) * spec.scale
     return validate_and_orient(mesh, source)
 
 

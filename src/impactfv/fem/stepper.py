@@ -69,8 +69,9 @@ From a case (:meth:`FEStepper.from_case`)
 * ``fem-t3`` uses each body's triangle mesh as it is (the same nodes and triangles the FV
   scheme builds its median dual on);
 * ``fem-q4md`` needs quadrilaterals: a body meshed with ``generator = "rectangle"`` gets the
-  bilinear quads of the same grid (same nodes, same boundary regions); a body read from a
-  file is refused;
+  bilinear quads of the same grid (same nodes, same boundary regions), a body read from a
+  mesh file of quadrilaterals gets them as they are (the FV scheme and fem-t3 run on their
+  triangles, impactfv.mesh.quads); a disc or a file of triangles is refused;
 * a ``[[body.boundary]]`` velocity component is prescribed strongly on every node of its
   region;
 * a ``[[contact]]`` between two bodies becomes a frictionless kinematic contact whose
@@ -89,6 +90,7 @@ import numpy as np
 from ..errors import InputError, SimulationError
 from ..geometry.surfaces import surface_facets
 from ..materials import N_PROPS, Material
+from ..mesh.core import Mesh
 from ..mesh.edges import boundary_facets, unique_edges
 from ..mesh.generators import quads_to_triangles, rectangle_quads
 from .elements import element_pressure_von_mises, internal_forces, nodal_average
@@ -179,6 +181,79 @@ def _check_method(method, cells):
         raise ValueError(f"method {method!r} needs {'3' if method == 'fem-t3' else '4'}-node "
                          f"cells, got cells of shape {np.asarray(cells).shape}")
 
+
+
+# --------------------------------------------------------------------------- from a case
+
+def case_mesh(body, method):
+    """The FE mesh of a case body: its triangles (fem-t3), or its quadrilaterals (fem-q4md:
+    those of a rectangle generator's grid, or those of a mesh file of quads), with the same
+    nodes and boundary regions."""
+    mesh = body.mesh
+    if method != "fem-q4md":
+        return mesh
+    spec = body.spec.mesh
+    if mesh.quads is not None:
+        return Mesh(mesh.points, mesh.quads, mesh.regions)
+    quads = rectangle_quads(spec.origin, spec.size, spec.divisions)
+    return Mesh(quads.points * spec.scale, quads.cells, quads.regions)
+
+
+def _contact_surface(case, mesh, k, name):
+    spec = case.contacts[k]
+    return surface_facets(boundary_facets(mesh.cells), mesh.regions, spec.regions,
+                          f"{case.source}: contact[{k}].regions", name)
+
+
+def unsupported(case, method) -> str | None:
+    """Why ``method`` (an FE method) cannot run ``case``, as an input-error line naming the
+    case file and the key, or None. Checks the case only; builds nothing."""
+    src = case.source
+    if method not in METHODS:
+        return f"{src}: run.method: {method!r} is not a FE method ({', '.join(METHODS)})"
+    for ib, body in enumerate(case.bodies):
+        spec = body.spec.mesh
+        if method == "fem-q4md" and body.mesh.quads is None and spec.generator != "rectangle":
+            what = f"reads {spec.file!r}, which has triangles" if spec.file else \
+                f"is a {spec.generator} of triangles"
+            return (f"{src}: body[{ib}].mesh: method fem-q4md needs quadrilaterals (a "
+                    "rectangle generator, or a mesh file of quadrilaterals only); body "
+                    f"{body.name!r} {what}")
+        if method == "fem-q4md" and body.mesh.quads is not None:
+            q = body.mesh.points[body.mesh.quads]
+            e1 = q - np.roll(q, 1, axis=1)
+            e2 = np.roll(q, -1, axis=1) - q
+            turn = e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]
+            bad = np.flatnonzero((turn <= 0).any(axis=1))
+            if len(bad):
+                return (f"{src}: body[{ib}].mesh: method fem-q4md needs convex "
+                        f"quadrilaterals; {len(bad)} of {body.spec.mesh.file!r} are not, "
+                        f"first is quad {bad[0]}")
+        for j, bc in enumerate(body.boundary):
+            if bc.traction is not None:
+                return (f"{src}: body[{ib}].boundary[{j}]: traction boundaries are not "
+                        f"supported by method {method!r} (use method = \"fv\")")
+    names = [b.name for b in case.bodies]
+    used = {}
+    for k, spec in enumerate(case.contacts):
+        if spec.wall is not None:
+            return (f"{src}: contact[{k}].wall: rigid-wall contact is not supported by "
+                    f"method {method!r} (use method = \"fv\")")
+        if spec.model != "slip":
+            return (f"{src}: contact[{k}].model: the FE contact is frictionless; method "
+                    f"{method!r} needs model = \"slip\"")
+        for name in spec.bodies:
+            i = names.index(name)
+            try:
+                edges = _contact_surface(case, case.bodies[i].mesh, k, name)
+            except InputError as exc:
+                return str(exc)
+            if i in used and not np.array_equal(used[i], edges):
+                return (f"{src}: contact[{k}]: body {name!r} is in several contacts with "
+                        f"different surfaces; method {method!r} takes one contact surface "
+                        "per body")
+            used[i] = edges
+    return None
 
 
 # --------------------------------------------------------------------------- stepper
@@ -300,27 +375,16 @@ class FEStepper:
     def from_case(cls, case):
         """The FE problem of a validated case with ``run.method`` "fem-t3" or "fem-q4md"."""
         method = case.run.method
-        if method not in METHODS:
-            raise InputError(f"{case.source}: run.method: {method!r} is not a FE method "
-                             f"({', '.join(METHODS)})")
+        problem = unsupported(case, method)
+        if problem:
+            raise InputError(problem)
         names = [b.name for b in case.bodies]
         bodies, meshes = [], []
         for ib, body in enumerate(case.bodies):
-            mesh = body.mesh
-            if method == "fem-q4md":
-                spec = body.spec.mesh
-                if spec.generator != "rectangle":
-                    raise InputError(f"{case.source}: body[{ib}].mesh: method fem-q4md needs "
-                                     "rectangle-generated meshes (generator = \"rectangle\"), "
-                                     f"body {body.name!r} reads {spec.file!r}")
-                mesh = rectangle_quads(spec.origin, spec.size, spec.divisions)
+            mesh = case_mesh(body, method)
             mask = np.zeros(mesh.points.shape, bool)
             value = np.zeros(mesh.points.shape)
             for j, bc in enumerate(body.boundary):
-                if bc.traction is not None:
-                    raise InputError(f"{case.source}: body[{ib}].boundary[{j}]: traction "
-                                     f"boundaries are not supported by method {method!r} "
-                                     "(use method = \"fv\")")
                 nodes = np.unique(mesh.regions[bc.region])
                 for c, comp in enumerate(bc.velocity.components(2)):
                     if comp is not None:
@@ -330,25 +394,11 @@ class FEStepper:
                                   np.asarray(mesh.cells, np.int64), body.material,
                                   body.initial_velocity(mesh.points), mask, value, None))
             meshes.append(mesh)
-        contacts, used = [], {}
+        contacts = []
         for k, spec in enumerate(case.contacts):
-            if spec.wall is not None:
-                raise InputError(f"{case.source}: contact[{k}].wall: rigid-wall contact is not "
-                                 f"supported by method {method!r} (use method = \"fv\")")
-            if spec.model != "slip":
-                raise InputError(f"{case.source}: contact[{k}].model: the FE contact is "
-                                 f"frictionless; method {method!r} needs model = \"slip\"")
             ia, ib_ = (names.index(n) for n in spec.bodies)
             for i in (ia, ib_):
-                edges = surface_facets(boundary_facets(meshes[i].cells), meshes[i].regions,
-                                       spec.regions, f"{case.source}: contact[{k}].regions",
-                                       names[i])
-                if i in used and not np.array_equal(used[i], edges):
-                    raise InputError(f"{case.source}: contact[{k}]: body {names[i]!r} is in "
-                                     "several contacts with different surfaces; method "
-                                     f"{method!r} takes one contact surface per body")
-                used[i] = edges
-                bodies[i].contact_edges = edges
+                bodies[i].contact_edges = _contact_surface(case, meshes[i], k, names[i])
             contacts.append(FemContact(ia, ib_))
         return cls(bodies, contacts, method, cfl=case.run.cfl)
 

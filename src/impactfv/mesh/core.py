@@ -11,6 +11,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import InputError
 from .edges import boundary_facets, directed_edges, edge_keys, unique_edges
+from .quads import orient_counter_clockwise
 
 
 @dataclass
@@ -19,11 +20,17 @@ class Mesh:
 
     ``regions`` maps a region name to its boundary facets (k, d), each oriented like the
     boundary of its cell (2D: the body lies on the left of a->b, outward normal (dy, -dx)/L).
+    ``quads`` (m/2, 4): for a mesh read from quadrilaterals, the counter-clockwise quads
+    that ``cells`` cut in two (impactfv.mesh.quads; the Q4 baseline runs on them), else
+    None. ``skipped_sets``: named sets of the mesh file that are not regions, with the
+    reason (impactfv.mesh.sets).
     """
 
     points: np.ndarray
     cells: np.ndarray
     regions: dict[str, np.ndarray] = field(default_factory=dict)
+    quads: np.ndarray | None = None
+    skipped_sets: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_nodes(self) -> int:
@@ -86,7 +93,14 @@ def validate_and_orient(mesh: Mesh, source: str) -> Mesh:
     tri = tri.astype(np.int64)
     if np.any(np.sort(tri, axis=1)[:, 1:] == np.sort(tri, axis=1)[:, :-1]):
         raise InputError(f"{source}: a triangle repeats a node")
-    mesh = Mesh(pts, tri, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()})
+    quads = None if mesh.quads is None else np.asarray(mesh.quads, dtype=np.int64)
+    if quads is not None and (quads.ndim != 2 or quads.shape[1] != 4 or quads.min() < 0
+                              or quads.max() >= len(pts)):
+        raise InputError(f"{source}: quadrilateral node index out of range 0..{len(pts) - 1}")
+    if quads is not None:
+        quads = orient_counter_clockwise(pts, quads)
+    mesh = Mesh(pts, tri, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()},
+                quads, dict(mesh.skipped_sets))
     area = mesh.triangle_areas()
     scale = np.median(mesh.edge_lengths()) ** 2
     bad = np.flatnonzero(np.abs(area) <= 1e-10 * scale)
@@ -159,4 +173,5 @@ def renumber_for_locality(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     cells = new_index[mesh.cells]
     cells = cells[np.argsort(cells.min(axis=1), kind="stable")]
     regions = {k: new_index[v] for k, v in mesh.regions.items()}
-    return Mesh(mesh.points[order], cells, regions), order
+    quads = None if mesh.quads is None else new_index[mesh.quads]
+    return Mesh(mesh.points[order], cells, regions, quads, dict(mesh.skipped_sets)), order
