@@ -203,6 +203,24 @@ class ContactSpec(_Strict):
         return self
 
 
+class OutputSpec(_Strict):
+    history_every: int = Field(1, ge=1, description="a history row every N steps (and the "
+                               "last step)")
+    fields: Optional[list[str]] = Field(None, description="point fields of the frames "
+                                        "(default: all)")
+
+    @field_validator("fields")
+    @classmethod
+    def _known_fields(cls, value):
+        from .io.fields import FIELDS
+        for name in value or ():
+            if name not in FIELDS:
+                close = difflib.get_close_matches(name, list(FIELDS), n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                raise ValueError(f"unknown field {name!r} ({hint}valid: {', '.join(FIELDS)})")
+        return value
+
+
 class CaseSpec(_Strict):
     title: Optional[str] = None
 
@@ -216,6 +234,7 @@ class CaseSpec(_Strict):
     material: list[MaterialSpec] = Field(min_length=1)
     body: list[BodySpec] = Field(min_length=1)
     contact: list[ContactSpec] = []
+    output: OutputSpec = OutputSpec()
 
 
 class Body:
@@ -243,14 +262,19 @@ class Case:
                                            m.poisson_ratio) for m in spec.material}
         self.bodies: list[Body] = []
         self.contacts = spec.contact
+        self.output = spec.output
 
     @property
     def stem(self) -> str:
         return Path(self.source).stem if self.source.endswith(".toml") else "case"
 
 
-def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] = None) -> Case:
-    """Read and validate a case from a TOML path or a dict; raise InputError on any problem."""
+def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] = None,
+              overrides=None) -> Case:
+    """Read and validate a case from a TOML path or a dict; raise InputError on any problem.
+
+    ``overrides``: ``KEY=VALUE`` texts (the CLI's ``--set``, impactfv.overrides) applied to
+    the data before it is validated."""
     if isinstance(source, dict):
         data, name = source, "<dict>"
         base = Path(base_dir) if base_dir is not None else Path.cwd()
@@ -269,11 +293,15 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
             raise InputError(f"{path}: cannot read the case file "
                              f"({exc.strerror or exc})") from None
         base = Path(base_dir) if base_dir is not None else path.resolve().parent
+    overridden = set()
+    if overrides:
+        from .overrides import apply
+        data, overridden = apply(data, overrides, CaseSpec, name)
     _refuse_booleans(data, name)
     try:
         spec = CaseSpec.model_validate(data)
     except ValidationError as exc:
-        raise InputError(_one_line(exc, name)) from None
+        raise InputError(_one_line(exc, name, overridden)) from None
     case = Case(spec, base, name)
     _check_names(spec, name)
     for i, b in enumerate(spec.body):
@@ -386,12 +414,15 @@ def _velocity_function(value, key):
 
 # ------------------------------------------------------------------------------ error text
 
-def _one_line(exc: ValidationError, source: str) -> str:
+def _one_line(exc: ValidationError, source: str, overridden=()) -> str:
     errors = exc.errors()
     # a misspelt key also makes the right one "missing": report the unknown key first
     err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
     loc = err["loc"]
     path = _format_loc(loc)
+    if any(path == k or path.startswith(k + ".") or path.startswith(k + "[")
+           for k in overridden):
+        path = f"--set {path}"
     kind = err["type"]
     if kind == "extra_forbidden":
         model = _model_at(CaseSpec, loc[:-1])

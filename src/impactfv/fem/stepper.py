@@ -93,7 +93,8 @@ from ..materials import N_PROPS, Material
 from ..mesh.core import Mesh
 from ..mesh.edges import boundary_facets, unique_edges
 from ..mesh.generators import quads_to_triangles, rectangle_quads
-from .elements import element_pressure_von_mises, internal_forces, nodal_average
+from .elements import (element_pressure_von_mises, element_stress_and_J, internal_forces,
+                       nodal_average)
 from .verlet import step as verlet_step
 
 CONTACT_MAX_ITER = 50
@@ -451,12 +452,36 @@ class FEStepper:
             von_mises[n0:n1] = nodal_average(cells, self.area0[c0:c1], vme[c0:c1], n1 - n0)
         return pressure, von_mises
 
+    def _stress_and_J(self):
+        """Nodal (reference-area-weighted) averages of the element Cauchy stress, as 3 x 3
+        with the plane-strain sigma_zz, and of the element J."""
+        m = len(self.cells)
+        se, je = np.empty((m, 4)), np.empty(m)
+        element_stress_and_J(self.x, self.cells, self.grads, self.wj, self.area0, self.emat,
+                             self.mtab, se, je)
+        n = len(self.x)
+        stress, jac = np.zeros((n, 3, 3)), np.empty(n)
+        where = ((0, 0), (1, 1), (0, 1), (2, 2))
+        for i, b in enumerate(self.bodies):
+            n0, n1 = self.node_off[i], self.node_off[i + 1]
+            c0, c1 = self.cell_off[i], self.cell_off[i + 1]
+            cells = np.asarray(b.cells, dtype=np.int64)
+            a0 = self.area0[c0:c1]
+            for c, (r, k) in enumerate(where):
+                stress[n0:n1, r, k] = nodal_average(cells, a0, se[c0:c1, c].copy(), n1 - n0)
+            jac[n0:n1] = nodal_average(cells, a0, je[c0:c1], n1 - n0)
+        stress[:, 1, 0] = stress[:, 0, 1]
+        return stress, jac
+
     def snapshot(self):
+        """(reference points, cells, point data) for a ParaView frame; element values are
+        averaged to the nodes."""
         pressure, von_mises = self._stresses()
-        body = np.repeat(np.arange(len(self.bodies)), np.diff(self.node_off)).astype(float)
-        return self.x, self.cells, {"velocity": self.v, "displacement": self.x - self.X,
+        stress, jac = self._stress_and_J()
+        body = np.repeat(np.arange(len(self.bodies)), np.diff(self.node_off)).astype(np.int32)
+        return self.X, self.cells, {"velocity": self.v, "displacement": self.x - self.X,
                                     "pressure": pressure, "von_mises": von_mises,
-                                    "body": body}
+                                    "stress": stress, "J": jac, "body": body}
 
     def body_fields(self) -> dict:
         """Per body: reference_points, points, cells, triangles (for plotting; quads split in
