@@ -210,3 +210,33 @@ def test_check_output_has_no_stray_blank_lines(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("case: ") and "\n\n" not in proc.stdout
 
+
+def test_the_run_path_does_not_load_matplotlib(tmp_path):
+    """matplotlib is only for pictures (compare, plot): a run, with its overlap check of
+    two bodies, does not import it."""
+    import subprocess
+    import sys
+    code = ("import sys\n"
+            "from impactfv import load_case, run\n"
+            "from impactfv.validation.bars import two_bars\n"
+            f"run(load_case(two_bars(divisions=(10, 2), end_time=1e-6)), {str(tmp_path)!r})\n"
+            "print('matplotlib' in sys.modules)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "False"
+
+
+def test_progress_bar_draws_on_one_line():
+    import io
+
+    from impactfv.pipeline.progress import progress_bar
+
+    stream = io.StringIO()
+    bar = progress_bar(True, 2e-5, stream)
+    for _ in range(4):
+        bar.update(5e-6)
+    bar.close()
+    text = stream.getvalue()
+    assert text.endswith("100%|" + "#" * 30 + "| 2.000e-05/2.000e-05 s [00:00<00:00]\n")
+    assert text.count("\n") == 1 and text.startswith("\rsimulated time")
+    assert progress_bar(False, 1.0) is None

@@ -5,15 +5,44 @@ from __future__ import annotations
 import numpy as np
 
 
+def containing_cell(points, X, cells, eps=1e-12) -> np.ndarray:
+    """Index of a simplex (triangle in 2D, tetrahedron in 3D) of the mesh (X, cells) that
+    contains each of ``points`` (n, d), or -1. Barycentric coordinates >= -eps count as
+    inside. Candidates come from a k-d tree of the cell centroids (scipy.spatial) within the
+    largest centroid-to-vertex distance, so the cost is about linear."""
+    from scipy.spatial import cKDTree
+
+    points = np.atleast_2d(np.asarray(points, float))
+    X = np.asarray(X, float)
+    cells = np.asarray(cells, dtype=np.int64)
+    out = np.full(len(points), -1, np.int64)
+    if len(points) == 0 or len(cells) == 0:
+        return out
+    corners = X[cells]                                  # (m, d + 1, d)
+    centroid = corners.mean(axis=1)
+    reach = float(np.linalg.norm(corners - centroid[:, None, :], axis=2).max())
+    lists = cKDTree(centroid).query_ball_point(points, reach * (1 + 1e-9) + 1e-300)
+    counts = np.array([len(c) for c in lists])
+    if counts.sum() == 0:
+        return out
+    which = np.repeat(np.arange(len(points)), counts)
+    cand = np.concatenate([np.asarray(c, np.int64) for c in lists if len(c)])
+    # barycentric coordinates: T lam' = p - x0, T = [x1 - x0, ..., xd - x0]
+    T = np.swapaxes(corners[cand, 1:] - corners[cand, :1], 1, 2)      # (k, d, d)
+    rhs = points[which] - corners[cand, 0]
+    lam = np.linalg.solve(T, rhs[..., None])[..., 0]
+    lam = np.column_stack([1.0 - lam.sum(axis=1), lam])
+    hit = np.all(lam >= -eps, axis=1)
+    out[which[hit][::-1]] = cand[hit][::-1]              # the first hit of each point
+    return out
+
+
 def body_overlap(points_a, facets_a, points_b, cells_b, facets_b, tol) -> float:
     """How deep the boundary nodes of body a lie inside body b (0 if none is inside by more
     than ``tol``). 2D: cells_b are triangles."""
-    from matplotlib.tri import Triangulation
-
     nodes = np.unique(facets_a)
     pts = points_a[nodes]
-    tri = Triangulation(points_b[:, 0], points_b[:, 1], cells_b)
-    inside = tri.get_trifinder()(pts[:, 0], pts[:, 1]) >= 0
+    inside = containing_cell(pts, points_b, cells_b) >= 0
     if not inside.any():
         return 0.0
     depth = _distance_to_facets(pts[inside][:2000], points_b, facets_b).max()
