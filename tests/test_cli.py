@@ -136,3 +136,107 @@ def test_gmsh_file_with_physical_groups(tmp_path):
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["nodes"] == len(m.points)
+
+
+# ------------------------------------------------------------------ --set, --debug, help
+
+def test_set_overrides_keys_of_the_case(tmp_path):
+    case = tmp_path / "bar.toml"
+    case.write_text(GOOD)
+    proc = impactfv("run", case, "-o", tmp_path / "out", "--no-progress",
+                    "--set", "run.end_time=1e-6", "--set", "body[0].velocity=[10, 0]",
+                    "--set", "run.method=fem-t3")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["end_time"] == pytest.approx(1e-6, rel=1e-12)
+    assert summary["method"] == "fem-t3"
+    with open(tmp_path / "out" / "history.csv") as fh:
+        first = next(csv.DictReader(fh))
+    # the clamped column of nodes starts at rest, the others at 10 m/s (not 50)
+    mass = 8930.0 * 0.004 * 0.001
+    assert 0.8 * 0.5 * mass * 10 ** 2 < float(first["kinetic_energy"]) < 0.5 * mass * 10 ** 2
+
+
+@pytest.mark.parametrize("command", ["run", "check", "compare"])
+@pytest.mark.parametrize("setting,words", [
+    ("run.end_tim=1e-6", ["--set run.end_tim: unknown key (did you mean 'end_time'?)"]),
+    ("body[0].mesh.sise=[1, 1]", ["--set body[0].mesh.sise: unknown key", "'size'"]),
+    ("body[2].velocity=[1, 0]", ["--set body[2].velocity", "1 entry in body"]),
+    ("run.end_time=soon", ["--set run.end_time: input should be a valid number"]),
+    ("run.cfl=2", ["--set run.cfl: input should be less than or equal to 1"]),
+    ("run.end_time", ["expected KEY=VALUE"]),
+    ("body[0].velocity=[1,", ["--set body[0].velocity: not a TOML value"]),
+])
+def test_bad_set_gives_one_line_and_exit_code_2(tmp_path, command, setting, words):
+    case = tmp_path / "bar.toml"
+    case.write_text(GOOD)
+    proc = impactfv(command, case, "--set", setting, cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert str(case) in lines[0]
+    for word in words:
+        assert word in lines[0], lines[0]
+    assert not (tmp_path / "results").exists()
+
+
+def test_debug_after_the_subcommand_shows_the_traceback(tmp_path):
+    case = tmp_path / "bar.toml"
+    case.write_text(GOOD.replace("end_time = 2.0e-6", "end_time = -1.0"))
+    quiet = impactfv("check", case)
+    assert quiet.returncode == 2 and "Traceback" not in quiet.stderr
+    for args in (("--debug", "check", case), ("check", case, "--debug")):
+        loud = impactfv(*args)
+        assert "Traceback" in loud.stderr and "InputError" in loud.stderr, args
+
+
+def test_help_reads_as_plain_text():
+    for args in ((), ("run",), ("check",), ("compare",), ("plot",)):
+        proc = impactfv(*args, "--help")
+        assert proc.returncode == 0
+        assert "``" not in proc.stdout and "`" not in proc.stdout
+        assert "\n\n\n" not in proc.stdout
+        assert proc.stdout.strip()
+
+
+def test_usage_errors_are_one_line():
+    proc = impactfv("run")
+    assert proc.returncode == 2
+    assert len(proc.stderr.strip().splitlines()) == 1 and "case" in proc.stderr
+
+
+def test_check_output_has_no_stray_blank_lines(tmp_path):
+    proc = impactfv("check", ROOT / "examples" / "plate_with_hole.toml")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("case: ") and "\n\n" not in proc.stdout
+
+
+def test_the_run_path_does_not_load_matplotlib(tmp_path):
+    """matplotlib is only for pictures (compare, plot): a run, with its overlap check of
+    two bodies, does not import it."""
+    import subprocess
+    import sys
+    code = ("import sys\n"
+            "from impactfv import load_case, run\n"
+            "from impactfv.validation.bars import two_bars\n"
+            f"run(load_case(two_bars(divisions=(10, 2), end_time=1e-6)), {str(tmp_path)!r})\n"
+            "print('matplotlib' in sys.modules)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "False"
+
+
+def test_progress_bar_draws_on_one_line():
+    import io
+
+    from impactfv.pipeline.progress import progress_bar
+
+    stream = io.StringIO()
+    bar = progress_bar(True, 2e-5, stream)
+    for _ in range(4):
+        bar.update(5e-6)
+    bar.close()
+    text = stream.getvalue()
+    assert text.endswith("100%|" + "#" * 30 + "| 2.000e-05/2.000e-05 s [00:00<00:00]\n")
+    assert text.count("\n") == 1 and text.startswith("\rsimulated time")
+    assert progress_bar(False, 1.0) is None

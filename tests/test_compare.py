@@ -178,7 +178,100 @@ def test_q4md_refuses_file_mesh(tmp_path):
     meshio.write(tmp_path / "sq.vtu", meshio.Mesh(pts, [("triangle", [[0, 1, 3], [0, 3, 2]])]))
     case = {"run": {"end_time": 1e-7, "method": "fem-q4md"}, "material": [MAT],
             "body": [{"name": "b", "material": "copper", "mesh": {"file": "sq.vtu"}}]}
-    with pytest.raises(InputError, match="rectangle-generated"):
+    with pytest.raises(InputError, match="needs quadrilaterals"):
         run(load_case(case, base_dir=tmp_path), progress=False)
     case["run"]["method"] = "fem-t3"
     assert run(load_case(case, base_dir=tmp_path), progress=False).summary["steps"] > 0
+
+
+# ------------------------------------------------------------------- compare up front
+
+def _small_pair(tmp_path, **changes):
+    """Two small bars as a case file; ``changes`` replace text of it."""
+    case = coarse_bars(4e-6)
+    for body in case["body"]:
+        body["mesh"]["divisions"] = [10, 2]
+    lines = ["[run]", "end_time = 4e-6", "output_interval = 2e-6",
+             "[[material]]"] + [f"{k} = {v!r}".replace("'", '"') for k, v in MAT.items()]
+    for body in case["body"]:
+        m = body["mesh"]
+        lines += ["[[body]]", f'name = "{body["name"]}"', 'material = "copper"',
+                  f"velocity = [{body['velocity'][0]}, 0.0]",
+                  f'mesh = {{ generator = "rectangle", origin = [{m["origin"][0]}, 0.0], '
+                  f'size = [{L}, {W}], divisions = [10, 2] }}']
+    lines += ["[[contact]]", 'bodies = ["left", "right"]', 'model = "slip"']
+    text = "\n".join(lines) + "\n"
+    for old, new in changes.items():
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp_path / "pair.toml"
+    path.write_text(text)
+    return path
+
+
+def test_compare_refuses_before_running_when_no_fe_method_can_run(tmp_path):
+    import time
+
+    from conftest import run_cli
+
+    path = _small_pair(tmp_path, **{'model = "slip"': 'model = "stick"'})
+    start = time.perf_counter()
+    proc = run_cli("compare", path, "-o", tmp_path / "cmp")
+    assert time.perf_counter() - start < 20          # no method ran
+    assert proc.returncode == 2
+    line = proc.stderr.strip()
+    assert len(line.splitlines()) == 1 and str(path) in line
+    assert "fem-t3: contact[0].model" in line and "frictionless" in line
+    assert not (tmp_path / "cmp" / "fv").exists()
+
+
+def test_compare_skips_a_method_that_cannot_run_with_a_note(tmp_path):
+    import meshio
+
+    from conftest import run_cli
+    from impactfv.mesh import rectangle
+
+    m = rectangle((0.0, 0.0), (L, W), (10, 2))
+    meshio.write(tmp_path / "right.msh", meshio.Mesh(m.points, [("triangle", m.cells)]),
+                 file_format="gmsh22", binary=False)
+    path = _small_pair(tmp_path, **{
+        f'mesh = {{ generator = "rectangle", origin = [{GAP / 2}, 0.0], size = [{L}, {W}], '
+        'divisions = [10, 2] }':
+        f'mesh = {{ file = "right.msh" }}'})
+    # the file's bar starts at x = 0: shift the left bar so that the gap stays GAP
+    text = path.read_text().replace(f"origin = [{-L - GAP / 2}, 0.0]",
+                                    f"origin = [{-L - GAP}, 0.0]")
+    path.write_text(text)
+    proc = run_cli("compare", path, "-o", tmp_path / "cmp")
+    assert proc.returncode == 0, proc.stderr
+    assert "[fem-q4md] skipped: body[1].mesh: method fem-q4md needs quadrilaterals" in \
+        proc.stdout
+    rows = (tmp_path / "cmp" / "comparison.csv").read_text().splitlines()
+    assert [r.split(",")[0] for r in rows[1:]] == ["fv", "fem-t3"]
+
+
+def test_compare_summary_for_unequal_and_clamped_bodies(tmp_path):
+    from impactfv.compare import runnable_methods, reference_pressure, summary_lines
+
+    steel = {"name": "steel", "density": 7850.0, "youngs_modulus": 210e9,
+             "poisson_ratio": 0.3}
+    case = coarse_bars(2e-6)
+    case["material"].append(steel)
+    case["body"][1]["material"] = "steel"
+    case["body"][1]["velocity"] = [0.0, 0.0]
+    case["body"][1]["boundary"] = [{"region": "xmax", "velocity": {"x": 0.0, "y": 0.0}}]
+    c = load_case(case)
+    ref = reference_pressure(c)
+    za = Material.from_entry(MAT).p_impedance
+    zb = Material.from_entry(steel).p_impedance
+    assert ref["p_ref"] == pytest.approx(50.0 * za * zb / (za + zb), rel=1e-12)
+    methods, skipped = runnable_methods(c)
+    lines = summary_lines(c, ref, skipped)
+    assert "v_close Z_a Z_b / (Z_a + Z_b)" in lines[0] and "50 m/s" in lines[0]
+    assert "v0" not in lines[0]
+    assert any("momentum drift (dP) not reported" in x and "'right'" in x for x in lines)
+    from impactfv.compare import metrics
+    from impactfv.pipeline import run
+    result = run(load_case(case))
+    row = metrics("fv", result, ref, c)
+    assert np.isnan(row["momentum_drift"])

@@ -329,3 +329,27 @@ def test_disc_bounces_off_a_wall(model):
     h = r / 10
     assert triangle_areas(body["points"], body["triangles"]).min() > 0.1 * h * h
     assert body["points"][:, 1].min() > -0.01 * h        # never through the wall
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_point_in_simplex_search_matches_brute_force(dim):
+    """The overlap check's point location (no matplotlib): every point gets a simplex that
+    contains it, or -1 when none does, in 2D (triangles) and 3D (tetrahedra)."""
+    from scipy.spatial import Delaunay
+
+    from impactfv.geometry.penetration import containing_cell
+
+    rng = np.random.default_rng(dim)
+    X = rng.uniform(0, 1, (60, dim))
+    cells = Delaunay(X).simplices
+    queries = rng.uniform(-0.2, 1.2, (400, dim))
+    found = containing_cell(queries, X, cells)
+    T = np.swapaxes(X[cells][:, 1:] - X[cells][:, :1], 1, 2)
+    for q, c in zip(queries, found):
+        lam = np.linalg.solve(T, (q - X[cells][:, 0])[..., None])[..., 0]
+        inside = np.all(np.column_stack([1 - lam.sum(1), lam]) >= -1e-12, axis=1)
+        if c < 0:
+            assert not inside.any()
+        else:
+            assert inside[c]
+    assert (found >= 0).sum() > 50 and (found < 0).sum() > 20

@@ -13,6 +13,7 @@ import numpy as np  # noqa: E402
 from matplotlib.tri import Triangulation  # noqa: E402
 
 from impactfv import load_case  # noqa: E402
+from impactfv.plot import FONT  # noqa: E402
 from impactfv.scheme.stepper import FVStepper  # noqa: E402
 from impactfv.scheme.kernels import point_fields  # noqa: E402
 
@@ -36,17 +37,20 @@ def main():
                      np.empty(m.n_nodes), solver.dim)
         snapshots.append((t, solver.x.copy(), p / 1e6))
     vmax = max(np.abs(s[2]).max() for s in snapshots)
-    fig, axes = plt.subplots(1, len(TIMES), figsize=(15, 3.4), sharey=True)
-    for ax, (t, x, p) in zip(axes, snapshots):
-        tri = Triangulation(x[:, 0] * 1e3, x[:, 1] * 1e3, cells)
-        im = ax.tripcolor(tri, p, shading="gouraud", cmap="RdBu_r", vmin=-vmax, vmax=vmax)
-        ax.axhline(0.0, color="k", lw=2)
-        ax.set_title(f"{t * 1e6:.0f} us")
-        ax.set_aspect("equal")
-        ax.set_xlabel("x (mm)")
-    axes[0].set_ylabel("y (mm)")
-    fig.colorbar(im, ax=axes, label="pressure (MPa)", shrink=0.8)
-    fig.savefig(HERE / "disc_wall.png", dpi=110, bbox_inches="tight")
+    with plt.rc_context(FONT):
+        fig, axes = plt.subplots(1, len(TIMES), figsize=(15, 3.4), sharey=True)
+        for ax, (t, x, p) in zip(axes, snapshots):
+            tri = Triangulation(x[:, 0] * 1e3, x[:, 1] * 1e3, cells)
+            im = ax.tripcolor(tri, p, shading="gouraud", cmap="RdBu_r", vmin=-vmax,
+                              vmax=vmax)
+            ax.axhline(0.0, color="k", lw=2)
+            ax.set_title(f"t = {t * 1e6:.0f} \u00b5s")
+            ax.set_aspect("equal")
+            ax.set_xlabel("x (mm)")
+        axes[0].set_ylabel("y (mm)")
+        fig.colorbar(im, ax=axes, label="pressure (MPa),\ncompression positive", shrink=0.8)
+        fig.savefig(HERE / "disc_wall.png", dpi=110, bbox_inches="tight")
+        plt.close(fig)
 
 
 if __name__ == "__main__":

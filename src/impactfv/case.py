@@ -108,6 +108,8 @@ class MeshSpec(_Strict):
     radius: Optional[float] = Field(None, allow_inf_nan=False)
     rings: Optional[int] = None
     file: Optional[str] = None
+    scale: float = Field(1.0, gt=0, allow_inf_nan=False,
+                         description="factor applied to the mesh coordinates (1e-3: mm)")
 
     @model_validator(mode="after")
     def _one_source(self):
@@ -253,6 +255,24 @@ class ContactSpec(_Strict):
         return self
 
 
+class OutputSpec(_Strict):
+    history_every: int = Field(1, ge=1, description="a history row every N steps (and the "
+                               "last step)")
+    fields: Optional[list[str]] = Field(None, description="point fields of the frames "
+                                        "(default: all)")
+
+    @field_validator("fields")
+    @classmethod
+    def _known_fields(cls, value):
+        from .io.fields import FIELDS
+        for name in value or ():
+            if name not in FIELDS:
+                close = difflib.get_close_matches(name, list(FIELDS), n=1)
+                hint = f"did you mean {close[0]!r}? " if close else ""
+                raise ValueError(f"unknown field {name!r} ({hint}valid: {', '.join(FIELDS)})")
+        return value
+
+
 class CaseSpec(_Strict):
     title: Optional[str] = None
 
@@ -266,6 +286,7 @@ class CaseSpec(_Strict):
     material: list[MaterialSpec] = Field(min_length=1)
     body: list[BodySpec] = Field(min_length=1)
     contact: list[ContactSpec] = []
+    output: OutputSpec = OutputSpec()
 
 
 class Body:
@@ -293,14 +314,19 @@ class Case:
                                            m.poisson_ratio) for m in spec.material}
         self.bodies: list[Body] = []
         self.contacts = spec.contact
+        self.output = spec.output
 
     @property
     def stem(self) -> str:
         return Path(self.source).stem if self.source.endswith(".toml") else "case"
 
 
-def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] = None) -> Case:
-    """Read and validate a case from a TOML path or a dict; raise InputError on any problem."""
+def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] = None,
+              overrides=None) -> Case:
+    """Read and validate a case from a TOML path or a dict; raise InputError on any problem.
+
+    ``overrides``: ``KEY=VALUE`` texts (the CLI's ``--set``, impactfv.overrides) applied to
+    the data before it is validated."""
     if isinstance(source, dict):
         data, name = source, "<dict>"
         base = Path(base_dir) if base_dir is not None else Path.cwd()
@@ -319,11 +345,15 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
             raise InputError(f"{path}: cannot read the case file "
                              f"({exc.strerror or exc})") from None
         base = Path(base_dir) if base_dir is not None else path.resolve().parent
+    overridden = set()
+    if overrides:
+        from .overrides import apply
+        data, overridden = apply(data, overrides, CaseSpec, name)
     _refuse_booleans(data, name)
     try:
         spec = CaseSpec.model_validate(data)
     except ValidationError as exc:
-        raise InputError(_one_line(exc, name)) from None
+        raise InputError(_one_line(exc, name, overridden)) from None
     case = Case(spec, base, name)
     _check_names(spec, name)
     dim = None
@@ -337,9 +367,8 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
         _check_lengths(b, i, dim, name)
         for j, bc in enumerate(b.boundary):
             if bc.region not in mesh.regions:
-                raise InputError(f"{name}: body[{i}].boundary[{j}].region: unknown region "
-                                 f"{bc.region!r} (the mesh has: "
-                                 f"{', '.join(sorted(mesh.regions)) or 'none'})")
+                raise InputError(f"{name}: body[{i}].boundary[{j}].region: "
+                                 f"{_unknown_region(bc.region, [mesh])}")
         velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity", dim)
         case.bodies.append(Body(b, case.materials[b.material], mesh, velocity))
     if dim == 3 and spec.run.method != "fv":
@@ -354,8 +383,8 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
         known = set().union(*(meshes[n].regions for n in c.bodies))
         for region in c.regions or ():
             if region not in known:
-                raise InputError(f"{name}: contact[{k}].regions: unknown region {region!r} "
-                                 f"(the bodies have: {', '.join(sorted(known)) or 'none'})")
+                raise InputError(f"{name}: contact[{k}].regions: "
+                                 f"{_unknown_region(region, [meshes[n] for n in c.bodies])}")
     return case
 
 
@@ -389,6 +418,18 @@ def _check_lengths(body: BodySpec, i: int, dim: int, source: str):
         _check_length(bc.traction, dim, key + ".traction")
         if bc.velocity is not None and dim == 2 and bc.velocity.z is not None:
             raise InputError(f"{key}.velocity.z: a 2D mesh has no z component")
+
+
+def _unknown_region(region: str, meshes) -> str:
+    """Why ``region`` names none of the regions of ``meshes``, and which they have."""
+    known = sorted(set().union(*(m.regions for m in meshes)))
+    for m in meshes:
+        if region in m.skipped_sets:
+            return (f"{region!r} is a {m.skipped_sets[region]}, not a boundary region (the "
+                    f"mesh has: {', '.join(known) or 'none'})")
+    close = difflib.get_close_matches(region, known, n=1)
+    hint = f"did you mean {close[0]!r}? " if close else ""
+    return f"unknown region {region!r} ({hint}the mesh has: {', '.join(known) or 'none'})"
 
 
 def _refuse_booleans(data, source: str, path: str = ""):
@@ -440,6 +481,8 @@ def _build_mesh(spec: MeshSpec, base: Path, key: str) -> Mesh:
             path = base / path
         mesh = read_mesh(path)
         source = str(path)
+    if spec.scale != 1.0:
+        mesh.points = np.asarray(mesh.points, dtype=float) * spec.scale
     return validate_and_orient(mesh, source)
 
 
@@ -473,12 +516,15 @@ def _velocity_function(value, key, dim=2):
 
 # ------------------------------------------------------------------------------ error text
 
-def _one_line(exc: ValidationError, source: str) -> str:
+def _one_line(exc: ValidationError, source: str, overridden=()) -> str:
     errors = exc.errors()
     # a misspelt key also makes the right one "missing": report the unknown key first
     err = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
     loc = err["loc"]
     path = _format_loc(loc)
+    if any(path == k or path.startswith(k + ".") or path.startswith(k + "[")
+           for k in overridden):
+        path = f"--set {path}"
     kind = err["type"]
     if kind == "extra_forbidden":
         model = _model_at(CaseSpec, loc[:-1])

@@ -31,8 +31,10 @@ def check_case(case: Case) -> tuple[str, list[str]]:
         q = body.mesh.quality()
         mat = body.material
         if body.mesh.dim == 2:
-            lines.append(f"body {body.name!r}: {q['nodes']} nodes, {q['triangles']} triangles, "
-                         f"area {q['area']:.6g} m^2")
+            quads = "" if body.mesh.quads is None else \
+                f" (cut from {len(body.mesh.quads)} quadrilaterals)"
+            lines.append(f"body {body.name!r}: {q['nodes']} nodes, {q['triangles']} triangles"
+                         f"{quads}, area {q['area']:.6g} m^2")
             angle = f"min angle {q['min_angle_deg']:.1f} deg"
         else:
             lines.append(f"body {body.name!r}: {q['nodes']} nodes, {q['tetrahedra']} "
@@ -47,6 +49,8 @@ def check_case(case: Case) -> tuple[str, list[str]]:
         regions = ", ".join(f"{k} ({len(v)} {facet})"
                             for k, v in sorted(body.mesh.regions.items()))
         lines.append(f"  boundary regions: {regions or 'none'}")
+        for name, why in sorted(body.mesh.skipped_sets.items()):
+            lines.append(f"  named set {name!r} is no region: {why}")
     h_over_c = float(np.min(disc.node_length / disc.material_table[disc.node_material, CP]))
     dt = case.run.cfl * h_over_c
     steps = math.ceil(case.run.end_time / dt)

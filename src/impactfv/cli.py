@@ -1,4 +1,4 @@
-"""Command line: ``impactfv run | check | compare``.
+"""Command line: impactfv run | check | compare | plot.
 
 Exit codes: 0 success, 2 input error (one line, no traceback), 3 failed simulation,
 130/143 interrupted, 141 the output pipe was closed by its reader.
@@ -16,12 +16,38 @@ from .errors import InputError, SimulationError, printable
 from .pipeline import Interrupted
 
 
-def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(prog="impactfv", description=__doc__.splitlines()[0])
+DESCRIPTION = ("Transient large-strain solid dynamics with contact by an upwind "
+               "vertex-centred finite volume method.")
+EPILOG = ("exit codes: 0 success, 2 bad input (one line naming the key or file), 3 the "
+          "simulation failed, 130/143 interrupted (a checkpoint was written), 141 the reader "
+          "of the output went away")
+
+
+class _Parser(argparse.ArgumentParser):
+    """Usage errors on one line, like every other input error (exit code 2)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _parser() -> argparse.ArgumentParser:
+    common = argparse.ArgumentParser(add_help=False)
+    # after the subcommand as well as before it; SUPPRESS keeps the first one's value
+    common.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                        help="show tracebacks instead of one-line errors")
+    overrides = argparse.ArgumentParser(add_help=False)
+    overrides.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                           dest="overrides",
+                           help="change a key of the case, e.g. run.end_time=3e-4 or "
+                                "body[0].velocity=[10,0] (a TOML value; repeatable)")
+    parser = _Parser(prog="impactfv", description=DESCRIPTION, epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"impactfv {__version__}")
-    parser.add_argument("--debug", action="store_true", help="show tracebacks")
-    sub = parser.add_subparsers(dest="command", required=True)
-    p_run = sub.add_parser("run", help="run a case file")
+    parser.add_argument("--debug", action="store_true",
+                        help="show tracebacks instead of one-line errors")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND",
+                                parser_class=_Parser)
+    p_run = sub.add_parser("run", parents=[common, overrides], help="run a case file",
+                           description="Run a case file and write its results.")
     p_run.add_argument("case", help="TOML case file")
     p_run.add_argument("-o", "--output", help="output folder (default results/<case stem>)")
     p_run.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -29,11 +55,38 @@ def main(argv=None) -> int:
                        help="continue the run in DIR from its newest checkpoint")
     p_run.add_argument("--checkpoint-every", metavar="T", type=_positive_float,
                        help="write a checkpoint every T seconds of simulated time")
-    p_check = sub.add_parser("check", help="check a case and report mesh, time step, memory")
-    p_check.add_argument("case")
-    p_cmp = sub.add_parser("compare", help="run the FV and FE methods on a case and compare")
-    p_cmp.add_argument("case")
+    p_run.add_argument("--plot", action="store_true",
+                       help="also write PNG quick-look pictures (as impactfv plot)")
+    p_check = sub.add_parser("check", parents=[common, overrides],
+                             help="check a case: mesh, wave speeds, time step, memory",
+                             description="Check a case and report its meshes, wave speeds, "
+                                         "time step, memory and overlaps; run nothing.")
+    p_check.add_argument("case", help="TOML case file")
+    p_cmp = sub.add_parser("compare", parents=[common, overrides],
+                           help="run the FV and FE methods on a case and compare",
+                           description="Run the FV scheme and the FE baselines that can run "
+                                       "the case, and compare them (figures and a table).")
+    p_cmp.add_argument("case", help="TOML case file")
     p_cmp.add_argument("-o", "--output", help="output folder (default results/<stem>_compare)")
+    p_plot = sub.add_parser("plot", parents=[common],
+                            help="PNG pictures of a result folder (no ParaView needed)",
+                            description="Write PNG quick-look pictures of a result folder: a "
+                                        "field on the deformed bodies at chosen times, and the "
+                                        "history curves.")
+    p_plot.add_argument("results", metavar="RESULT_DIR", help="folder written by impactfv run")
+    p_plot.add_argument("--field", default="pressure",
+                        help="field to draw (default pressure); a vector gives its magnitude, "
+                             "a suffix a component: velocity_x, stress_xy")
+    p_plot.add_argument("--times", metavar="T1,T2,...",
+                        help="times in seconds (the nearest frames are drawn); default: four "
+                             "frames from the first to the last")
+    p_plot.add_argument("-o", "--output", help="folder of the pictures (default "
+                                               "RESULT_DIR/plots)")
+    return parser
+
+
+def main(argv=None) -> int:
+    parser = _parser()
     args = parser.parse_args(argv)
     try:
         if args.command == "run":
@@ -43,6 +96,9 @@ def main(argv=None) -> int:
         if args.command == "compare":
             from .compare import compare_main
             return compare_main(args)
+        if args.command == "plot":
+            from .plot import plot_main
+            return plot_main(args)
     except InputError as exc:
         if args.debug:
             raise
@@ -82,7 +138,7 @@ def _run(args) -> int:
     from .case import load_case
     from .pipeline import run
 
-    case = load_case(args.case)
+    case = load_case(args.case, overrides=args.overrides)
     if args.restart:
         out = Path(args.restart)
         if not out.is_dir():
@@ -98,6 +154,10 @@ def _run(args) -> int:
           f"{s['wall_time_s']:.2f} s wall, "
           f"{(s['node_stage_updates_per_second'] or 0) / 1e6:.2f} M node-stage updates/s")
     print(f"results in {printable(out)}/ (history.csv, summary.json, fields.pvd)")
+    if args.plot:
+        from .plot import plot_results
+        written = plot_results(out)
+        print(f"pictures in {printable(out / 'plots')}/ ({', '.join(p.name for p in written)})")
     return 0
 
 
@@ -114,7 +174,7 @@ def _check(args) -> int:
     from .case import load_case
     from .checks import check_case
 
-    case = load_case(args.case)
+    case = load_case(args.case, overrides=args.overrides)
     report, problems = check_case(case)
     print("\n".join(printable(line) for line in report.splitlines()))
     if problems:

@@ -69,9 +69,10 @@ COLUMNS = ("method", "nodes", "steps", "wall_time_s", "roughness", "peak_pressur
 
 def method_case(case: Case, method: str, divisions=None) -> Case:
     """A copy of ``case`` run with ``method`` (and, optionally, every rectangle body meshed
-    with ``divisions``)."""
+    with ``divisions``), with a history row every step (the metrics integrate it)."""
     data = case.spec.model_dump(exclude_none=True)
     data["run"]["method"] = method
+    data.setdefault("output", {})["history_every"] = 1
     for body in data["body"]:
         if divisions is not None and body["mesh"].get("generator") == "rectangle":
             body["mesh"]["divisions"] = list(divisions)
@@ -104,13 +105,32 @@ def reference_pressure(case: Case, k: int = 0) -> dict:
     t = np.array([-d[1], d[0]])
     widths = [float(np.ptp(body.mesh.points @ t)) for body in (a, b)]
     return {"p_ref": p_ref, "v_close": v_close, "v0": 0.5 * v_close, "direction": d,
-            "width": min(widths), "Z": (za, zb)}
+            "width": min(widths), "Z": (za, zb), "bodies": (a.name, b.name)}
 
 
 def _areas(pts, tri):
     p = pts[tri]
     return 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
                         - (p[:, 2, 0] - p[:, 0, 0]) * (p[:, 1, 1] - p[:, 0, 1]))
+
+
+def external_loads(case: Case) -> list[str]:
+    """The boundary conditions through which a case exchanges momentum (prescribed velocity
+    components: their supports push back) or energy (tractions, non-zero velocities), as
+    'body[i] region r: what' texts; empty for free bodies."""
+    out = []
+    for i, body in enumerate(case.bodies):
+        for bc in body.boundary:
+            what = []
+            if bc.velocity is not None:
+                comps = [c for c, v in zip("xy", bc.velocity.components(2)) if v is not None]
+                moving = any(v for v in bc.velocity.components(2) if v is not None)
+                what.append(f"{'moving' if moving else 'held'} velocity "
+                            f"{'/'.join(comps)}")
+            if bc.traction is not None and any(bc.traction):
+                what.append("traction")
+            out.append(f"body {body.name!r} region {bc.region!r}: {', '.join(what)}")
+    return out
 
 
 # ----------------------------------------------------------------------------- metrics
@@ -184,6 +204,8 @@ def metrics(method, result, ref, case) -> dict:
         scale += mass * float(np.linalg.norm(body.initial_velocity(pts).mean(axis=0)))
     P = np.column_stack([h["momentum_x"], h["momentum_y"]])
     drift = float(np.max(np.linalg.norm(P - P[0], axis=1))) / scale if scale > 0 else 0.0
+    if external_loads(case):
+        drift = float("nan")   # the supports and loads exchange momentum with the outside
     mech = h["kinetic_energy"] + h["strain_energy"]
     row = {
         "method": method, "nodes": int(result.summary["nodes"]),
@@ -233,57 +255,68 @@ def _pressure_figure(results, ref, path):
             im = ax.tripcolor(tri, f["pressure"] / 1e6, shading="gouraud", cmap="viridis",
                               vmin=lo, vmax=hi, rasterized=True)
         ax.set_aspect("equal")
-        ax.set_title(f"{LABELS[method]}: pressure at t = {r.history['time'][-1] * 1e6:.1f} us",
-                     fontsize=10)
-        ax.set_ylabel("y (mm)")
-    axes[-1].set_xlabel("x (mm)")
+        ax.set_title(f"{LABELS[method]}: pressure at t = "
+                     f"{r.history['time'][-1] * 1e6:.1f} \u00b5s", fontsize=12)
+        ax.set_ylabel("y (mm)", fontsize=11)
+    axes[-1].set_xlabel("x (mm)", fontsize=11)
     cb = fig.colorbar(im, ax=list(axes), shrink=0.9, extend="both")
-    cb.set_label(f"pressure (MPa); 1D acoustic value rho c_p v0 = {ref['p_ref'] / 1e6:.0f} MPa")
+    cb.set_label(f"pressure (MPa, compression positive); 1D acoustic p_ref = "
+                 f"{ref['p_ref'] / 1e6:.0f} MPa")
     fig.savefig(path, dpi=150)
     plt.close(fig)
 
 
 def _history_figure(results, ref, path):
+    """Contact force and energies of the methods; both per metre of thickness (MN/m and
+    kJ/m), time in microseconds."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True, constrained_layout=True)
-    for method, r in results.items():
-        h = r.history
-        t = h["time"] * 1e6
-        a1.plot(t, contact_force(h, ref) / 1e6, color=COLORS[method], lw=1.2,
-                label=LABELS[method], zorder=3 if method == "fv" else 2)
-        a2.plot(t, (h["kinetic_energy"] + h["strain_energy"]) / 1e3, color=COLORS[method],
-                lw=1.5, label=f"{LABELS[method]}: kinetic + strain")
-        a2.plot(t, h["kinetic_energy"] / 1e3, color=COLORS[method], lw=1, ls="--")
-        a2.plot(t, h["strain_energy"] / 1e3, color=COLORS[method], lw=1, ls=":")
-    a1.axhline(ref["p_ref"] * ref["width"] / 1e6, color="k", lw=0.8, ls="--",
-               label="1D acoustic: rho c_p v0 x width")
-    # start shortly before the first contact: the free flight before it is uneventful
-    starts = [np.nan]
-    for r in results.values():
-        on = np.flatnonzero(contact_force(r.history, ref) > 0)
-        if len(on):
-            starts.append(r.history["time"][on[0]])
-    end = max(r.history["time"][-1] for r in results.values())
-    if np.isfinite(np.nanmin(starts)):
-        t0 = np.nanmin(starts)
-        a1.set_xlim(max(0.0, t0 - 0.1 * (end - t0)) * 1e6, end * 1e6)
-    a1.set_ylabel("contact force (kN per mm thickness)")
-    a1.legend(fontsize=8)
-    a1.grid(alpha=0.3)
-    a2.set_ylabel("energy (kJ per m thickness)")
-    a2.set_xlabel("time (us)")
-    a2.plot([], [], color="gray", ls="--", label="kinetic")
-    a2.plot([], [], color="gray", ls=":", label="strain")
-    a2.legend(fontsize=8)
-    a2.grid(alpha=0.3)
-    fig.savefig(path, dpi=150)
-    plt.close(fig)
+    from .plot import FONT
+
+    with plt.rc_context(FONT):
+        fig, (a1, a2) = plt.subplots(2, 1, figsize=(9, 8), sharex=True,
+                                     constrained_layout=True)
+        for method, r in results.items():
+            h = r.history
+            t = h["time"] * 1e6
+            a1.plot(t, contact_force(h, ref) / 1e6, color=COLORS[method], lw=1.4,
+                    label=LABELS[method], zorder=3 if method == "fv" else 2)
+            a2.plot(t, (h["kinetic_energy"] + h["strain_energy"]) / 1e3,
+                    color=COLORS[method], lw=1.8, label=f"{LABELS[method]}: kinetic + strain")
+            a2.plot(t, h["kinetic_energy"] / 1e3, color=COLORS[method], lw=1.1, ls="--")
+            a2.plot(t, h["strain_energy"] / 1e3, color=COLORS[method], lw=1.1, ls=":")
+        a1.axhline(ref["p_ref"] * ref["width"] / 1e6, color="k", lw=0.9, ls="--",
+                   label="1D acoustic: p_ref x contact width")
+        # start shortly before the first contact: the free flight before it is uneventful
+        starts = [np.nan]
+        for r in results.values():
+            on = np.flatnonzero(contact_force(r.history, ref) > 0)
+            if len(on):
+                starts.append(r.history["time"][on[0]])
+        end = max(r.history["time"][-1] for r in results.values())
+        if np.isfinite(np.nanmin(starts)):
+            t0 = np.nanmin(starts)
+            a1.set_xlim(max(0.0, t0 - 0.1 * (end - t0)) * 1e6, end * 1e6)
+        a1.set_ylabel("contact force, compressive\n(MN/m, per metre of thickness)")
+        a1.legend(loc="upper right")
+        a1.grid(alpha=0.3)
+        a2.set_ylabel("energy (kJ/m, per metre of thickness)")
+        a2.set_xlabel("time (\u00b5s)")
+        a2.plot([], [], color="gray", ls="--", label="kinetic")
+        a2.plot([], [], color="gray", ls=":", label="strain")
+        a2.legend(loc="center right")
+        a2.grid(alpha=0.3)
+        fig.savefig(path, dpi=150)
+        plt.close(fig)
 
 
 # ----------------------------------------------------------------------------- driver
+
+def _or_dash(value, spec):
+    return f"{'-':>8}" if not np.isfinite(value) else format(value, spec)
+
 
 def format_table(rows) -> str:
     head = (f"{'method':<9} {'nodes':>6} {'steps':>6} {'wall s':>7} {'rough':>7} "
@@ -296,7 +329,8 @@ def format_table(rows) -> str:
                      f"{r['peak_pressure_MPa']:>9.1f} {r['peak_over_pref']:>9.3f} "
                      f"{r['peak_contact_pressure_MPa']:>8.1f} {r['peak_contact_over_pref']:>8.3f} "
                      f"{r['plateau_pressure_MPa']:>9.1f} {r['plateau_over_pref']:>9.3f} "
-                     f"{r['penetration_per_h']:>8.1e} {r['momentum_drift']:>8.1e} "
+                     f"{r['penetration_per_h']:>8.1e} "
+                     f"{_or_dash(r['momentum_drift'], '>8.1e')} "
                      f"{r['energy_end_over_start']:>6.3f} "
                      f"{r['energy_with_contact_end_over_start']:>7.3f}")
     return "\n".join(lines)
@@ -313,11 +347,12 @@ def compare_case(case: Case, output_dir=None, divisions=None, methods=METHODS,
 
     out = Path(output_dir) if output_dir is not None else \
         Path("results") / f"{case.stem}_compare"
-    out.mkdir(parents=True, exist_ok=True)
     ref = reference_pressure(case)
+    methods, skipped = runnable_methods(case, methods)
+    out.mkdir(parents=True, exist_ok=True)
     if verbose:
-        print(f"reference contact pressure rho c_p v0 = {ref['p_ref'] / 1e6:.1f} MPa "
-              f"(v0 = {ref['v0']:.3g} m/s)", flush=True)
+        for line in summary_lines(case, ref, skipped):
+            print(line, flush=True)
     results, rows = {}, []
     for method in methods:
         mcase = method_case(case, method, divisions)
@@ -346,8 +381,55 @@ def compare_case(case: Case, output_dir=None, divisions=None, methods=METHODS,
     return {"rows": rows, "results": results, "reference": ref, "output_dir": out}
 
 
+def runnable_methods(case: Case, methods=METHODS):
+    """(the methods that can run ``case``, {method: why not} for the others). Checks the
+    case only, before anything runs; refuses (InputError naming the case file) when no FE
+    baseline is left to compare with, or no method at all."""
+    from .fem.stepper import unsupported
+
+    ok, skipped = [], {}
+    for method in methods:
+        problem = None if method == "fv" else unsupported(case, method)
+        if problem:
+            prefix = f"{case.source}: "
+            skipped[method] = problem[len(prefix):] if problem.startswith(prefix) else problem
+        else:
+            ok.append(method)
+    if len(ok) < 2:
+        why = "; ".join(f"{m}: {w}" for m, w in skipped.items())
+        raise InputError(f"{case.source}: compare needs the FV scheme and at least one FE "
+                         f"baseline, and {'only ' + ok[0] if ok else 'no method'} can run "
+                         f"this case ({why})")
+    return ok, skipped
+
+
+def summary_lines(case: Case, ref: dict, skipped: dict) -> list[str]:
+    """What compare prints before it runs: the reference pressure and how it was made, the
+    methods it skips and why, and what the momentum and energy metrics can show."""
+    za, zb = ref["Z"]
+    if np.isclose(za, zb, rtol=1e-9):
+        how = (f"rho c_p v0 with rho c_p = {za:.4g} kg/(m^2 s) and v0 = half the closing "
+               f"speed = {ref['v0']:.3g} m/s")
+    else:
+        na, nb = ref["bodies"]
+        how = (f"v_close Z_a Z_b / (Z_a + Z_b) with closing speed v_close = "
+               f"{ref['v_close']:.3g} m/s and impedances Z = rho c_p of {na!r} "
+               f"{za:.4g} and of {nb!r} {zb:.4g} kg/(m^2 s)")
+    lines = [f"1D acoustic contact pressure p_ref = {ref['p_ref'] / 1e6:.1f} MPa ({how}; "
+             "the closing speed is that of the mean initial velocities along the line "
+             "joining the centroids)"]
+    lines += [f"[{m}] skipped: {why}" for m, why in skipped.items()]
+    loads = external_loads(case)
+    if loads:
+        lines.append("momentum drift (dP) not reported: the boundary conditions exchange "
+                     f"momentum with the outside ({'; '.join(loads)})")
+        if any("moving" in x or "traction" in x for x in loads):
+            lines.append("energy ratios include the work of moving supports or tractions")
+    return lines
+
+
 def compare_main(args) -> int:
-    case = load_case(args.case)
+    case = load_case(args.case, overrides=getattr(args, "overrides", None))
     out = Path(args.output) if getattr(args, "output", None) else \
         Path("results") / f"{Path(args.case).stem}_compare"
     if out.exists() and not out.is_dir():

@@ -12,25 +12,33 @@ from ..geometry.bins import bin_of, build_bins
 
 
 @njit(cache=True)
-def _apply_impulse(v, minv, mass, n, lam, c, nx, ny):
-    """v[n] += c*lam*minv[n]*nrm; returns (work I.v_new / 1, momentum change x, y)."""
-    dke = 0.0
+def _apply_impulse(v, minv, mass, acc, hdt, n, lam, c, nx, ny):
+    """v[n] += c*lam*minv[n]*nrm; returns (the change of the step's energy, momentum change
+    x, y).
+
+    The impulse changes the half-step velocity v_{n+1/2} by dv; in velocity Verlet this
+    changes the energy at the end of the step, KE(v_{n+1}) + SE(x_{n+1}), by
+    m (v_n + dv/2) . dv with v_n = v_{n+1/2} - dt/2 a_n the start-of-step velocity (to
+    O(dt^2)): the energy the impulse puts in (negative: takes out). For several impulses
+    on one node the increments add up to the same total.
+    """
+    de = 0.0
     dpx = 0.0
     dpy = 0.0
     for d in range(2):
         if minv[n, d] > 0.0:
             dv = c * lam * minv[n, d] * (nx if d == 0 else ny)
             v[n, d] += dv
-            dke += mass[n] * v[n, d] * dv
+            de += mass[n] * (v[n, d] - 0.5 * dv - hdt * acc[n, d]) * dv
             if d == 0:
                 dpx += mass[n] * dv
             else:
                 dpy += mass[n] * dv
-    return dke, dpx, dpy
+    return de, dpx, dpy
 
 
 @njit(cache=True)
-def contact_correct(x, v, minv, mass, dt, pslave_ptr, slave_nodes, pseg_ptr, segs,
+def contact_correct(x, v, minv, mass, acc, dt, pslave_ptr, slave_nodes, pseg_ptr, segs,
                     psedge_ptr, sedges, pcontact, pslave_is_a, pdepth, normals, xp, cons_n,
                     cons_xi, cons_nrm, cons_p, cforce, cgap, maxit, tol):
     """Kinematic frictionless node-to-segment contact, two-pass.
@@ -49,10 +57,14 @@ def contact_correct(x, v, minv, mass, dt, pslave_ptr, slave_nodes, pseg_ptr, seg
     to round-off.
 
     Outputs ``cforce[k]`` (force on body_a of contact k, impulse/dt) and ``cgap[k]`` (smallest
-    signed gap after correction, nan if no candidate). Returns the kinetic-energy change of
-    the (half-step) velocities caused by the correction and the number of constraints.
+    signed gap after correction, nan if no candidate). ``v`` holds the half-step velocities
+    v_{n+1/2} and ``acc`` the accelerations a_n of the start of the step. Returns the change
+    of the step's end energy (kinetic + strain) caused by the correction (see
+    :func:`_apply_impulse`; negative: the contact took energy out) and the number of
+    constraints.
     """
     npass = pslave_ptr.shape[0] - 1
+    hdt = 0.5 * dt
     cforce[:, :] = 0.0
     cgap[:] = np.nan
     ncons = 0
@@ -172,9 +184,9 @@ def contact_correct(x, v, minv, mass, dt, pslave_ptr, slave_nodes, pseg_ptr, seg
             if wsum <= 0.0:
                 continue
             lam = -g / (dt * wsum)
-            k1, sx_, sy_ = _apply_impulse(v, minv, mass, n, lam, 1.0, nx, ny)
-            k2, ax_, ay_ = _apply_impulse(v, minv, mass, a, lam, -(1.0 - xi), nx, ny)
-            k3, bx_, by_ = _apply_impulse(v, minv, mass, b, lam, -xi, nx, ny)
+            k1, sx_, sy_ = _apply_impulse(v, minv, mass, acc, hdt, n, lam, 1.0, nx, ny)
+            k2, ax_, ay_ = _apply_impulse(v, minv, mass, acc, hdt, a, lam, -(1.0 - xi), nx, ny)
+            k3, bx_, by_ = _apply_impulse(v, minv, mass, acc, hdt, b, lam, -xi, nx, ny)
             dke += k1 + k2 + k3
             k = pcontact[cons_p[c]]
             if pslave_is_a[cons_p[c]]:

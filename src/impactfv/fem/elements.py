@@ -24,6 +24,7 @@ from ..backends.cpu import local_matrix, point
 _first_piola = point(M.first_piola)
 _energy = point(M.strain_energy_density)
 _pressure_and_von_mises = point(M.pressure_and_von_mises)
+_cauchy_stress = point(M.cauchy_stress)
 CP = M.CP
 
 
@@ -188,6 +189,44 @@ def element_pressure_von_mises(x, cells, grads, wj, area0, emat, mtab, pe, vme):
             ws += w
         pe[e] = ps / ws
         vme[e] = vs / ws
+
+
+@njit(cache=True)
+def element_stress_and_J(x, cells, grads, wj, area0, emat, mtab, se, je):
+    """Element-average Cauchy stress ``se (M, 4)`` = (xx, yy, xy, zz) and J ``je (M,)``
+    (Q4: with the mean-dilatation F_bar, so J is the element's Jbar)."""
+    k = cells.shape[1]
+    ngp = grads.shape[1]
+    Fm = local_matrix(2)
+    sigma = local_matrix(2)
+    for e in range(cells.shape[0]):
+        props = mtab[emat[e]]
+        jbar = _shoelace(x, cells, e) / area0[e]
+        acc = np.zeros(5)
+        ws = 0.0
+        for g in range(ngp):
+            f11, f12, f21, f22 = _deformation_gradient(x, cells, grads, e, g)
+            if k == 4:
+                s = math.sqrt(jbar / (f11 * f22 - f12 * f21))
+                f11 *= s
+                f12 *= s
+                f21 *= s
+                f22 *= s
+            Fm[0, 0] = f11
+            Fm[0, 1] = f12
+            Fm[1, 0] = f21
+            Fm[1, 1] = f22
+            szz = _cauchy_stress(Fm, props, sigma)
+            w = wj[e, g]
+            acc[0] += w * sigma[0, 0]
+            acc[1] += w * sigma[1, 1]
+            acc[2] += w * sigma[0, 1]
+            acc[3] += w * szz
+            acc[4] += w * (f11 * f22 - f12 * f21)
+            ws += w
+        for c in range(4):
+            se[e, c] = acc[c] / ws
+        je[e] = acc[4] / ws
 
 
 @njit(cache=True)

@@ -16,7 +16,7 @@ def step(x, v, acc, f, minv, mass, fmask, fval, dt, cells, grads, wj, area0, ema
     does not penetrate; x_{n+1} = x_n + dt v_{n+1/2}; a_{n+1} = -M^-1 f_int(x_{n+1});
     v_{n+1} = v_{n+1/2} + dt/2 a_{n+1}.  Prescribed components are reset each half step.
 
-    Returns (strain energy, kinetic energy, px, py, contact dKE, dt limit ratio, min J,
+    Returns (strain energy, kinetic energy, px, py, energy change by the contact, dt limit ratio, min J,
     number of contact constraints), all at t_{n+1}.
     """
     nn = x.shape[0]
@@ -27,7 +27,7 @@ def step(x, v, acc, f, minv, mass, fmask, fval, dt, cells, grads, wj, area0, ema
                 v[i, d] = fval[i, d]
             else:
                 v[i, d] += hdt * acc[i, d]
-    dke, ncons = contact_correct(x, v, minv, mass, dt, pslave_ptr, slave_nodes, pseg_ptr,
+    dke, ncons = contact_correct(x, v, minv, mass, acc, dt, pslave_ptr, slave_nodes, pseg_ptr,
                                  segs, psedge_ptr, sedges, pcontact, pslave_is_a, pdepth,
                                  normals, xp, cons_n, cons_xi, cons_nrm, cons_p, cforce, cgap,
                                  maxit, tol)

@@ -23,19 +23,28 @@ def containing_cell(points, X, cells, eps=1e-12) -> np.ndarray:
         return out
     corners = X[cells]                                  # (m, d + 1, d)
     centroid = corners.mean(axis=1)
-    reach = float(np.linalg.norm(corners - centroid[:, None, :], axis=2).max())
-    lists = cKDTree(centroid).query_ball_point(points, reach * (1 + 1e-9) + 1e-300)
-    counts = np.array([len(c) for c in lists])
-    if counts.sum() == 0:
-        return out
-    which = np.repeat(np.arange(len(points)), counts)
-    cand = np.concatenate([np.asarray(c, np.int64) for c in lists if len(c)])
+    with np.errstate(over="ignore", invalid="ignore"):  # absurd coordinates: search all
+        reach = float(np.abs(corners - centroid[:, None, :]).sum(axis=2).max())
+    try:
+        lists = cKDTree(centroid).query_ball_point(points, reach * (1 + 1e-9) + 1e-300)
+    except ValueError:     # coordinates near the double range overflow the tree's distances
+        lists = None
+    if lists is None:
+        which = np.repeat(np.arange(len(points)), len(cells))
+        cand = np.tile(np.arange(len(cells)), len(points))
+    else:
+        counts = np.array([len(c) for c in lists])
+        if counts.sum() == 0:
+            return out
+        which = np.repeat(np.arange(len(points)), counts)
+        cand = np.concatenate([np.asarray(c, np.int64) for c in lists if len(c)])
     # barycentric coordinates: T lam' = p - x0, T = [x1 - x0, ..., xd - x0]
     T = np.swapaxes(corners[cand, 1:] - corners[cand, :1], 1, 2)      # (k, d, d)
     rhs = points[which] - corners[cand, 0]
-    lam = np.linalg.solve(T, rhs[..., None])[..., 0]
-    lam = np.column_stack([1.0 - lam.sum(axis=1), lam])
-    hit = np.all(lam >= -eps, axis=1)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        lam = np.linalg.solve(T, rhs[..., None])[..., 0]
+        lam = np.column_stack([1.0 - lam.sum(axis=1), lam])
+        hit = np.all(lam >= -eps, axis=1)
     out[which[hit][::-1]] = cand[hit][::-1]              # the first hit of each point
     return out
 

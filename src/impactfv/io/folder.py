@@ -10,8 +10,8 @@ from ..errors import InputError
 
 LOCK_NAME = ".impactfv.lock"
 # what a run writes; a fresh run removes these (and only these) from an earlier run
-OUTPUT_PATTERNS = ("fields_*.vtu", "fields.pvd", "history.csv", "summary.json",
-                   "checkpoints/checkpoint_*.npz")
+OUTPUT_PATTERNS = ("fields_*.vtu", "fields.pvd", "walls_*.vtu", "walls.pvd", "history.csv",
+                   "summary.json", "checkpoints/checkpoint_*.npz", "plots/*.png")
 
 
 def _alive(pid: int) -> bool:

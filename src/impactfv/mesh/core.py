@@ -11,6 +11,7 @@ from scipy.sparse.csgraph import reverse_cuthill_mckee
 
 from ..errors import InputError
 from .edges import boundary_facets, cell_facets, facet_keys, unique_edges
+from .quads import orient_counter_clockwise
 
 #: the dihedral angles of a regular tetrahedron, degrees
 REGULAR_DIHEDRAL = float(np.degrees(np.arccos(1.0 / 3.0)))
@@ -24,11 +25,17 @@ class Mesh:
     ``regions`` maps a region name to its boundary facets (k, d), each oriented like the
     boundary of its cell (2D: the body lies on the left of a->b, outward normal (dy, -dx)/L;
     3D: (b - a) x (c - a) points out of the body).
+    ``quads`` (m/2, 4): for a mesh read from quadrilaterals, the counter-clockwise quads
+    that ``cells`` cut in two (impactfv.mesh.quads; the Q4 baseline runs on them), else
+    None. ``skipped_sets``: named sets of the mesh file that are not regions, with the
+    reason (impactfv.mesh.sets).
     """
 
     points: np.ndarray
     cells: np.ndarray
     regions: dict[str, np.ndarray] = field(default_factory=dict)
+    quads: np.ndarray | None = None
+    skipped_sets: dict[str, str] = field(default_factory=dict)
 
     @property
     def n_nodes(self) -> int:
@@ -141,7 +148,14 @@ def validate_and_orient(mesh: Mesh, source: str) -> Mesh:
     ordered = np.sort(cells, axis=1)
     if np.any(ordered[:, 1:] == ordered[:, :-1]):
         raise InputError(f"{source}: a {kind} repeats a node")
-    mesh = Mesh(pts, cells, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()})
+    quads = None if mesh.quads is None else np.asarray(mesh.quads, dtype=np.int64)
+    if quads is not None and (quads.ndim != 2 or quads.shape[1] != 4 or quads.min() < 0
+                              or quads.max() >= len(pts)):
+        raise InputError(f"{source}: quadrilateral node index out of range 0..{len(pts) - 1}")
+    if quads is not None:
+        quads = orient_counter_clockwise(pts, quads)
+    mesh = Mesh(pts, cells, {k: np.asarray(v, dtype=np.int64) for k, v in mesh.regions.items()},
+                quads, dict(mesh.skipped_sets))
     measure = mesh.cell_volumes()
     scale = np.median(mesh.edge_lengths()) ** d
     bad = np.flatnonzero(np.abs(measure) <= 1e-10 * scale)
@@ -229,4 +243,5 @@ def renumber_for_locality(mesh: Mesh) -> tuple[Mesh, np.ndarray]:
     cells = new_index[mesh.cells]
     cells = cells[np.argsort(cells.min(axis=1), kind="stable")]
     regions = {k: new_index[v] for k, v in mesh.regions.items()}
-    return Mesh(mesh.points[order], cells, regions), order
+    quads = None if mesh.quads is None else new_index[mesh.quads]
+    return Mesh(mesh.points[order], cells, regions, quads, dict(mesh.skipped_sets)), order

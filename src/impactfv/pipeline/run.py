@@ -49,11 +49,15 @@ def step_count_problem(case: Case, dt: float) -> str | None:
 
 @dataclass
 class Schedule:
-    """When a run stops and when it writes: ``output_interval`` defaults to end_time / 10."""
+    """When a run stops and when it writes: ``output_interval`` (default end_time / 10)
+    between frames, a history row every ``history_every`` steps (and at the last step),
+    the frames' point ``fields`` (None: all the stepper has)."""
 
     end_time: float
     output_interval: float | None = None
     max_steps: int = 10_000_000
+    history_every: int = 1
+    fields: tuple | None = None
 
     @property
     def interval(self) -> float:
@@ -78,8 +82,10 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
         raise InputError(f"{case.source}: {overlaps[0]}")
     wall_start = _time.perf_counter()
     stepper = make_stepper(case)
+    output = case.output
     schedule = Schedule(case.run.end_time, case.run.output_interval,
-                        case.run.max_steps or DEFAULT_MAX_STEPS)
+                        case.run.max_steps or DEFAULT_MAX_STEPS, output.history_every,
+                        None if output.fields is None else tuple(output.fields))
     if not restart:
         problem = step_count_problem(case, stepper.stable_dt())
         if problem:
@@ -87,17 +93,43 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     return run_stepper(stepper, schedule, output_dir, progress=progress, restart=restart,
                        checkpoint_every=checkpoint_every, handle_signals=handle_signals,
                        fingerprint=case_fingerprint(case), title=case.title,
-                       wall_start=wall_start)
+                       wall_start=wall_start, walls=case_walls(case),
+                       contacts=case_contacts(case))
+
+
+def case_walls(case) -> list:
+    """The rigid walls of a case as (point, normal, velocity, size) for the output frames:
+    a patch centred on the bodies' projection, as long as their extent along it plus half
+    (the walls are drawn in walls.pvd)."""
+    walls = [c.wall for c in case.contacts if c.wall is not None]
+    if not walls:
+        return []
+    X = np.concatenate([b.mesh.points for b in case.bodies])
+    out = []
+    for w in walls:
+        point, normal = np.asarray(w.point, float), np.asarray(w.normal, float)
+        centre = X.mean(axis=0)
+        centre = centre - np.dot(centre - point, normal) * normal
+        size = 1.5 * float(np.max(np.ptp(X, axis=0)))
+        out.append((centre, normal, np.asarray(w.velocity, float), size))
+    return out
+
+
+def case_contacts(case) -> list:
+    """What each contact joins, for summary.json: {"bodies": [...], "wall": bool}."""
+    return [{"bodies": list(c.bodies), "wall": c.wall is not None, "model": c.model}
+            for c in case.contacts]
 
 
 def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | None = None,
                 restart: bool = False, checkpoint_every: float | None = None,
                 handle_signals: bool = False, fingerprint: str = "", title: str | None = None,
-                wall_start: float | None = None) -> RunResult:
+                wall_start: float | None = None, walls=(), contacts=None) -> RunResult:
     """Run ``stepper`` to ``schedule.end_time``; see :func:`run` for the options. The output
-    folder, if any, is locked for the run (io.folder.OutputFolder)."""
+    folder, if any, is locked for the run (io.folder.OutputFolder). ``walls``: rigid walls
+    drawn in the frames (:func:`case_walls`); ``contacts``: described in the summary."""
     args = (stepper, schedule, output_dir, progress, restart, checkpoint_every, handle_signals,
-            fingerprint, title, wall_start)
+            fingerprint, title, wall_start, walls, contacts)
     if output_dir is None:
         return _run_stepper(*args)
     with OutputFolder(output_dir, fresh=not restart):
@@ -105,7 +137,7 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
 
 
 def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_every,
-                 handle_signals, fingerprint, title, wall_start) -> RunResult:
+                 handle_signals, fingerprint, title, wall_start, walls, contacts) -> RunResult:
     if (restart or checkpoint_every or handle_signals) and output_dir is None:
         raise InputError("restart and checkpoints need an output folder")
     end = schedule.end_time
@@ -116,11 +148,15 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     wall_start = _time.perf_counter() if wall_start is None else wall_start
     interval = schedule.interval
     out = Path(output_dir) if output_dir is not None else None
-    writer = SnapshotWriter(out, "fields") if out is not None else None
+    writer = SnapshotWriter(out, "fields", fields=schedule.fields, walls=walls) \
+        if out is not None else None
     history = History(["time", "dt", *stepper.history_columns()])
+    every = max(int(schedule.history_every), 1)
+    recorded = [-1]
 
-    def record(t, dt):
+    def record(t, dt, step):
         history.append((t, dt, *stepper.history_row()))
+        recorded[0] = step
 
     def snapshot(t):
         if writer is not None:
@@ -141,9 +177,11 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         out.mkdir(parents=True, exist_ok=True)
     if restart:
         t, steps, next_output = _restart(out, fingerprint, stepper, history, writer)
+        if history.n and history.data["time"][history.n - 1] == t:
+            recorded[0] = steps
     else:
         t, steps = 0.0, 0
-        record(0.0, 0.0)
+        record(0.0, 0.0, 0)
         snapshot(0.0)
         next_output = interval
     next_checkpoint = _next_multiple(t, checkpoint_every) if checkpoint_every else math.inf
@@ -154,9 +192,13 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     stop = SignalFlag(handle_signals)
     loop_start = _time.perf_counter()
 
-    def finish(status):
-        return _finish(out, history, stepper, title, steps, t, wall_start, loop_start, status)
+    def finish(status, last_dt=None):
+        if last_dt is not None and recorded[0] != steps:
+            record(t, last_dt, steps)      # the last step, whatever history_every is
+        return _finish(out, history, stepper, title, steps, t, wall_start, loop_start, status,
+                       contacts)
 
+    last_dt = None
     try:
         while t < end * (1 - 1e-12):
             dt = stepper.stable_dt()
@@ -168,10 +210,12 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             if t + dt >= target * (1 - 1e-12):
                 dt = target - t
             stepper.step(dt)
+            last_dt = dt
             t = target if abs(t + dt - target) <= 1e-12 * end else t + dt
             steps += 1
             stepper.check(steps, t)
-            record(t, dt)
+            if steps % every == 0:
+                record(t, dt, steps)
             if t >= next_output * (1 - 1e-12) or t >= end * (1 - 1e-12):
                 snapshot(t)
                 if out is not None:
@@ -184,6 +228,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             if bar is not None:
                 bar.update(t - bar.n)
             if stop.signum is not None:
+                if recorded[0] != steps:
+                    record(t, dt, steps)
                 path = checkpoint(t, steps, next_output)
                 finish("interrupted")
                 raise Interrupted(stop.signum, path)
@@ -197,7 +243,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         stop.restore()
         if bar is not None:
             bar.close()
-    summary = finish(status)
+    summary = finish(status, last_dt)
     return RunResult(history.arrays(), stepper.body_fields(), summary, out,
                      writer.entries if writer else [])
 
@@ -225,7 +271,8 @@ def _restart(out, fingerprint, stepper, history, writer):
         raise InputError(f"{path}: unreadable checkpoint ({exc})") from None
 
 
-def _finish(out, history, stepper, title, steps, t, wall_start, loop_start, status):
+def _finish(out, history, stepper, title, steps, t, wall_start, loop_start, status,
+            contacts=None):
     loop_time = _time.perf_counter() - loop_start
     info = stepper.summary()
     summary = {
@@ -237,6 +284,8 @@ def _finish(out, history, stepper, title, steps, t, wall_start, loop_start, stat
             else None,
         "final": history.last(),
     }
+    if contacts is not None:
+        summary["contacts"] = contacts
     if out is not None:
         write_history_csv(out / "history.csv", history.data, history.n)
         write_summary(out / "summary.json", summary)

@@ -12,6 +12,7 @@ import numpy as np
 from ..backends.cpu import dim_tag
 from ..case import Case
 from ..errors import SimulationError
+from ..io.fields import nodal_stress
 from . import kernels as K
 from .discretisation import Discretisation, discretise
 from .limiters import IDS as LIMITER_IDS
@@ -229,16 +230,18 @@ class FVStepper:
         K.point_fields(self.F, m.node_material, m.material_table, pressure, von_mises, jac,
                        self.dim)
         data = {"velocity": self.v, "displacement": self.x - m.X, "pressure": pressure,
-                "von_mises": von_mises, "J": jac, "body": m.body_of_node.astype(float)}
+                "von_mises": von_mises,
+                "stress": nodal_stress(self.F, m.node_material, m.material_table), "J": jac,
+                "body": m.body_of_node.astype(np.int32)}
         if self.contact is not None:
-            data["contact_status"] = self.contact.state.astype(float)  # 0 open 1 stick 2 slip
+            data["contact_status"] = self.contact.state.astype(np.int32)  # 0 open 1 stick 2 slip
             data["contact_pressure"] = -self.contact.tstar_n
         return data
 
     def snapshot(self):
-        """(points, cells, point data) of all bodies for a ParaView frame."""
+        """(reference points, cells, point data) of all bodies for a ParaView frame."""
         cells = np.concatenate([b.cells for b in self.disc.bodies])
-        return self.x, cells, self.point_data()
+        return self.disc.X, cells, self.point_data()
 
     def body_fields(self) -> dict[str, dict[str, np.ndarray]]:
         """The point fields of each body (copies), plus its mesh and F."""
