@@ -112,11 +112,19 @@ def test_stick_transfers_tangential_momentum_and_slip_does_not():
     assert py["stick"] < 10.0 * 0.95
 
 
+def _mu(stick):
+    """The friction coefficient of a stick (True: infinite), slip (False: 0) or Coulomb
+    (a number) contact."""
+    if isinstance(stick, bool):
+        return np.inf if stick else 0.0
+    return float(stick)
+
+
 def _state(vA, tA, vB, tB, n, stick, z=(1.3e7, 1.3e6, 4.0e7, 6.0e6)):
     d = len(n)
     out = [np.zeros(d) for _ in range(7)]
-    tn = contact_state(np.array(vA, float), np.array(tA, float), np.array(vB, float),
-                       np.array(tB, float), np.asarray(n, float), *z, stick, *out)
+    tn, _ = contact_state(np.array(vA, float), np.array(tA, float), np.array(vB, float),
+                          np.array(tB, float), np.asarray(n, float), *z, _mu(stick), *out)
     vsA, vsB, ts = out[4:]
     return tn, vsA, vsB, ts
 
@@ -176,7 +184,7 @@ def test_wall_is_the_infinite_impedance_limit(stick):
     n = np.array([0.6, 0.8])
     vA, tA = np.array([5.0, 1.0]), np.array([-1e6, 2e5])
     scratch = [np.zeros(2) for _ in range(4)]
-    tn = wall_state(vA, tA, n, 1.3e7, 1.3e6, np.zeros(2), stick, *scratch)
+    tn, _ = wall_state(vA, tA, n, 1.3e7, 1.3e6, np.zeros(2), _mu(stick), *scratch)
     vs, ts = scratch[2], scratch[3]
     limit = _state(vA, tA, [0.0, 0.0], tA, n, stick, (1.3e7, 1.3e6, 1e30, 1e30))
     assert tn == pytest.approx(limit[0], rel=1e-9)

@@ -240,12 +240,24 @@ class WallSpec(_Strict):
 
 class ContactSpec(_Strict):
     bodies: list[str] = Field(min_length=1, max_length=2)
-    model: Literal["stick", "slip"] = "slip"
+    model: Literal["stick", "slip", "coulomb"] = "slip"
+    friction: Optional[float] = Field(None, ge=0, allow_inf_nan=False,
+                                      description="Coulomb coefficient mu (model coulomb)")
     wall: Optional[WallSpec] = None
     regions: Optional[list[str]] = Field(None, min_length=1)
 
+    @property
+    def friction_coefficient(self) -> float:
+        """mu of the contact law: 0 for slip, infinite for stick."""
+        return {"slip": 0.0, "stick": math.inf}.get(self.model, self.friction)
+
     @model_validator(mode="after")
     def _partner(self):
+        if self.model == "coulomb" and self.friction is None:
+            raise ValueError("model = \"coulomb\" needs friction = mu (>= 0)")
+        if self.model != "coulomb" and self.friction is not None:
+            raise ValueError(f"friction is the coefficient of model = \"coulomb\" (model "
+                             f"\"{self.model}\" has none)")
         if self.wall is None and len(self.bodies) != 2:
             raise ValueError("give two bodies, or one body and a wall = { point, normal }")
         if self.wall is not None and len(self.bodies) != 1:

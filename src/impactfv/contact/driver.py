@@ -40,7 +40,7 @@ class Pair:
 
     index: int
     surfaces: list
-    stick: bool
+    friction: float                 # Coulomb coefficient: 0 slip, inf stick
     flip: float                     # -1 when the case names the bodies in reverse order
     wall_point: np.ndarray = None
     wall_normal: np.ndarray = None  # out of the wall
@@ -60,7 +60,7 @@ class ContactSystem:
             # names in `bodies` gives bit-identical results; `flip` restores the sign
             names = sorted(spec.bodies, key=disc.body_index)
             pair = Pair(k, [self._surface(case, disc, name, spec.regions, k) for name in names],
-                        spec.model == "stick", -1.0 if names[0] != spec.bodies[0] else 1.0,
+                        spec.friction_coefficient, -1.0 if names[0] != spec.bodies[0] else 1.0,
                         fsum=np.zeros((2, d)))
             if spec.wall is not None:
                 normal = np.array(spec.wall.normal, float)
@@ -189,7 +189,7 @@ class ContactSystem:
                 RS.wall_pass(disc.X, x, F, v, sigma, disc.node_material,
                              disc.material_table, slave, self.face_start, self.face_list,
                              disc.bface_C, disc.bface_others, self.normal,
-                             pair.wall_velocity, pair.stick, self.phi, self.wall_face_buffer,
+                             pair.wall_velocity, pair.friction, self.phi, self.wall_face_buffer,
                              self.force_acc, fsum, self.face_weight, self.face_velocity,
                              self.state, self.length_sum, self.motion_sum,
                              self.traction_sum, self.dim)
@@ -228,7 +228,7 @@ class ContactSystem:
                             segment_faces, self.phi, count, self.piece_node, self.piece_face,
                             self.piece_partner, self.piece_segment, self.piece_length,
                             self.piece_face_length, self.piece_normal, 0.5,
-                            1.0 if first == 0 else -1.0, pair.stick, self.force_acc, fsum,
+                            1.0 if first == 0 else -1.0, pair.friction, self.force_acc, fsum,
                             self.face_weight, self.face_velocity, self.state,
                             self.length_sum, self.motion_sum, self.traction_sum, self.dim)
         return gmin

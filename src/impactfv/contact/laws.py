@@ -13,6 +13,8 @@ back. The seed writes each body's traction with its own outward normal, t_n^R = 
 hence the signs of its eq. (5). Tangential vectors are v_t = v - (v . n) n.
 """
 
+import math
+
 from ..tensors import dot
 
 
@@ -40,6 +42,27 @@ def slip_tangential_velocity(vt, tt, zs, sign):
     return vt - sign * tt / zs
 
 
+def sliding_tangential_velocity(vt, tt, tt_star, zs, sign):
+    """Tangential velocity of one body sliding under the tangential contact traction t*_t:
+    its shear characteristic t*_t - t_t = sign Z_s (v*_t - v_t) (sign +1 for A, -1 for B).
+    With t*_t = 0 this is the slip velocity of seed eq. 8."""
+    return vt + sign * (tt_star - tt) / zs
+
+
+def friction_scale(tt_norm, tn, mu):
+    """Coulomb's law on the stick trial state (Kozdon, Dunham and Nordstrom 2012, on the
+    Riemann problem of a frictional interface): the factor by which the trial tangential
+    traction of seed eq. 6 is scaled, 1 if it does not exceed mu times the contact pressure
+    -t*_n (stick), mu (-t*_n) / |t_t| if it does (the bodies slide, the traction stays on the
+    Coulomb limit along the trial direction). mu = inf is stick, mu = 0 slip."""
+    if mu == math.inf:
+        return 1.0
+    limit = mu * max(-tn, 0.0)
+    if tt_norm <= limit:
+        return 1.0
+    return limit / tt_norm
+
+
 def releases(tn):
     """The contact surface cannot support tension (seed section 3): a tensile normal
     traction t*_n > 0 releases the contact, and each side becomes a free surface."""
@@ -51,13 +74,17 @@ def _tangential(u, n, un, out):
         out[i] = u[i] - un * n[i]
 
 
-def contact_state(vA, tA, vB, tB, n, zpA, zsA, zpB, zsB, stick, vtA, ttA, vtB, ttB,
+def contact_state(vA, tA, vB, tB, n, zpA, zsA, zpB, zsB, mu, vtA, ttA, vtB, ttB,
                   vstarA, vstarB, tstar):
     """The contact state (seed eq. 7): t* = t*_n n + t*_t and each body's contact velocity
-    v*^K = v*_n n + v*_t^K, with stick (eq. 6: v*_t common) or slip (eq. 8: t*_t = 0).
+    v*^K = v*_n n + v*_t^K, with the friction coefficient mu: stick (mu = inf, eq. 6: v*_t
+    common), slip (mu = 0, eq. 8: t*_t = 0), or Coulomb friction (friction_scale: the stick
+    trial traction capped at mu (-t*_n), each body's tangential velocity then from its own
+    shear characteristic, sliding_tangential_velocity).
 
-    Writes vstarA, vstarB and tstar; vtA .. ttB are scratch vectors. Returns t*_n.
-    """
+    Writes vstarA, vstarB and tstar; vtA .. ttB are scratch vectors. Returns (t*_n, whether
+    the bodies slide)."""
+    d = n.shape[0]
     vnA = dot(vA, n)
     vnB = dot(vB, n)
     tnA = dot(tA, n)
@@ -67,17 +94,28 @@ def contact_state(vA, tA, vB, tB, n, zpA, zsA, zpB, zsB, stick, vtA, ttA, vtB, t
     _tangential(vB, n, vnB, vtB)
     _tangential(tA, n, tnA, ttA)
     _tangential(tB, n, tnB, ttB)
-    for i in range(n.shape[0]):
-        if stick:
-            vt, tt = stick_tangential(vtA, ttA, vtB, ttB, zsA, zsB, i)
-            vstarA[i] = vn * n[i] + vt
-            vstarB[i] = vn * n[i] + vt
-            tstar[i] = tn * n[i] + tt
-        else:
+    if mu == 0.0:
+        for i in range(d):
             vstarA[i] = vn * n[i] + slip_tangential_velocity(vtA[i], ttA[i], zsA, 1.0)
             vstarB[i] = vn * n[i] + slip_tangential_velocity(vtB[i], ttB[i], zsB, -1.0)
             tstar[i] = tn * n[i]
-    return tn
+        return tn, True
+    trial = 0.0
+    for i in range(d):
+        vt, tt = stick_tangential(vtA, ttA, vtB, ttB, zsA, zsB, i)
+        vstarA[i] = vn * n[i] + vt
+        vstarB[i] = vn * n[i] + vt
+        tstar[i] = tn * n[i] + tt
+        trial += tt * tt
+    scale = friction_scale(math.sqrt(trial), tn, mu)
+    if scale == 1.0:
+        return tn, False
+    for i in range(d):
+        tt_star = scale * (tstar[i] - tn * n[i])
+        vstarA[i] = vn * n[i] + sliding_tangential_velocity(vtA[i], ttA[i], tt_star, zsA, 1.0)
+        vstarB[i] = vn * n[i] + sliding_tangential_velocity(vtB[i], ttB[i], tt_star, zsB, -1.0)
+        tstar[i] = tn * n[i] + tt_star
+    return tn, True
 
 
 def kinematic_velocity(v, t, tstar, zp, i):
@@ -101,22 +139,35 @@ def kinematic_velocity(v, t, tstar, zp, i):
     return v[i] + (tstar[i] - t[i]) / zp
 
 
-def wall_state(vA, tA, n, zpA, zsA, wall_velocity, stick, vt, tt, vstar, tstar):
+def wall_state(vA, tA, n, zpA, zsA, wall_velocity, mu, vt, tt, vstar, tstar):
     """Body A against a rigid wall moving with ``wall_velocity``, n pointing into the wall:
-    the limit Z_B -> infinity of the contact state of seed eq. 7. The wall imposes its normal velocity (and in
-    stick its tangential velocity). Writes vstar and tstar; returns t*_n."""
+    the limit Z_B -> infinity of the contact state of seed eq. 7. The wall imposes its normal
+    velocity; in stick (mu = inf) its tangential velocity, in slip (mu = 0) no tangential
+    traction, and with Coulomb friction the stick traction capped at mu (-t*_n)
+    (friction_scale). Writes vstar and tstar; returns (t*_n, whether the body slides)."""
+    d = n.shape[0]
     vnA = dot(vA, n)
     tnA = dot(tA, n)
     vnW = dot(wall_velocity, n)
     tn = tnA + zpA * (vnW - vnA)
     _tangential(vA, n, vnA, vt)
     _tangential(tA, n, tnA, tt)
-    for i in range(n.shape[0]):
-        if stick:
-            vw = wall_velocity[i] - vnW * n[i]
-            vstar[i] = vnW * n[i] + vw
-            tstar[i] = tn * n[i] + tt[i] + zsA * (vw - vt[i])
-        else:
+    if mu == 0.0:
+        for i in range(d):
             vstar[i] = vnW * n[i] + slip_tangential_velocity(vt[i], tt[i], zsA, 1.0)
             tstar[i] = tn * n[i]
-    return tn
+        return tn, True
+    trial = 0.0
+    for i in range(d):
+        vw = wall_velocity[i] - vnW * n[i]
+        vstar[i] = vnW * n[i] + vw
+        tstar[i] = tn * n[i] + tt[i] + zsA * (vw - vt[i])
+        trial += (tstar[i] - tn * n[i]) ** 2
+    scale = friction_scale(math.sqrt(trial), tn, mu)
+    if scale == 1.0:
+        return tn, False
+    for i in range(d):
+        tt_star = scale * (tstar[i] - tn * n[i])
+        vstar[i] = vnW * n[i] + sliding_tangential_velocity(vt[i], tt[i], tt_star, zsA, 1.0)
+        tstar[i] = tn * n[i] + tt_star
+    return tn, True

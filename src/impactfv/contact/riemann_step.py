@@ -91,7 +91,7 @@ def facet_position(facets, s, b):
 @njit(cache=True, error_model="numpy")
 def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others, segs, segment_faces, phi, count,
                  piece_node, piece_face, piece_partner, piece_segment, piece_length,
-                 piece_face_length, piece_normal, weight, sign, stick, force_acc, fsum,
+                 piece_face_length, piece_normal, weight, sign, mu, force_acc, fsum,
                  face_weight, face_velocity, state, length_sum, motion_sum, traction_sum,
                  dim):
     """Contact states of the pieces, in order. A piece of pass weight w (1/2 between two
@@ -142,8 +142,8 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
         zsA = pa[RHO] * pa[CS] / ra
         zpB = pb[RHO] * pb[CP] / rb
         zsB = pb[RHO] * pb[CS] / rb
-        tn = contact_state(vA, tA, vB, tB, c, zpA, zsA, zpB, zsB, stick, vtA, ttA, vtB, ttB,
-                           vsA, vsB, ts)
+        tn, slides = contact_state(vA, tA, vB, tB, c, zpA, zsA, zpB, zsB, mu, vtA, ttA, vtB,
+                                   ttB, vsA, vsB, ts)
         if releases(tn):
             continue
         for i in range(d):
@@ -170,7 +170,7 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
             face_velocity[face_b, i] += wb * kB
             motion_sum[a, i] += share * (kA - v[a, i])
             motion_sum[b, i] += share * (kB - v[b, i])
-        mode = STICK if stick else SLIP
+        mode = SLIP if slides else STICK
         state[a] = mode
         state[b] = mode
         length_sum[a] += weight * ell
@@ -199,7 +199,7 @@ def wall_fractions(v, slave, gap, normal, wall_velocity, memory, dt, phi):
 
 @njit(cache=True, error_model="numpy")
 def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_list, bface_C, bface_others,
-              normal, wall_velocity, stick, phi, faces, force_acc, fsum, face_weight,
+              normal, wall_velocity, mu, phi, faces, force_acc, fsum, face_weight,
               face_velocity, state, length_sum, motion_sum, traction_sum, dim):
     """Nodes of one body against a rigid wall: each of a node's faces that faces the wall
     meets it with its own face state; the force acts on the face's projection on
@@ -233,8 +233,8 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
             face_state(a, bface_others[face], v, sigma, vA, S, d)
             face_traction(S, n, 1.0, tA)
             r = area_ratio(F, a, bface_C[face], props, Fa, N, scratch)
-            tn = wall_state(vA, tA, n, props[RHO] * props[CP] / r, props[RHO] * props[CS] / r,
-                            vw, stick, vt, tt, vs, ts)
+            tn, slides = wall_state(vA, tA, n, props[RHO] * props[CP] / r,
+                                    props[RHO] * props[CS] / r, vw, mu, vt, tt, vs, ts)
             if releases(tn):
                 continue
             # the projection of this face on the wall
@@ -252,7 +252,7 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
                 kv = kinematic_velocity(vA, tA, ts, props[RHO] * props[CP] / r, k)
                 face_velocity[face, k] += phi[a] * kv
                 motion_sum[a, k] += share * (kv - v[a, k])
-            state[a] = STICK if stick else SLIP
+            state[a] = SLIP if slides else STICK
             length_sum[a] += projected
             traction_sum[a] += tn * projected
 
