@@ -274,3 +274,86 @@ def test_a_new_run_leaves_no_files_of_the_old_one(tmp_path):
     assert not list(out.glob(".*.tmp"))
     summary = json.loads((out / "summary.json").read_text())
     assert summary["end_time"] == pytest.approx(2e-7)
+
+
+# -------------------------------------------------------------- class 8: signals at any moment
+
+def _start_cli(*args, env=None):
+    import subprocess
+    import sys
+
+    return subprocess.Popen([sys.executable, "-m", "impactfv.cli", *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+
+
+def _assert_prompt_signal_exit(proc, sig, code, out=None):
+    import signal
+    import subprocess
+    import time
+
+    sent = time.monotonic()
+    proc.send_signal(sig)
+    try:
+        stdout, stderr = proc.communicate(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        pytest.fail(f"{signal.Signals(sig).name}: no exit within 10 s")
+    waited = time.monotonic() - sent
+    assert proc.returncode == code, (proc.returncode, stderr)
+    assert waited < 5.0, waited
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and f"interrupted by {signal.Signals(sig).name}" in lines[0], stderr
+    assert "Traceback" not in stdout + stderr
+    if out is not None:
+        assert not (out / ".impactfv.lock").exists()        # the folder is free again
+
+
+@pytest.mark.parametrize("command", ["run", "check"])
+@pytest.mark.parametrize("sig,code", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_a_signal_during_the_imports_gives_the_exit_code(tmp_path, command, sig, code):
+    import signal
+    import time
+
+    path = write_case(tmp_path)
+    args = ("run", path, "-o", tmp_path / "out", "--no-progress") if command == "run" else \
+        ("check", path)
+    proc = _start_cli(*args)
+    time.sleep(0.2)
+    assert proc.poll() is None                               # still importing
+    _assert_prompt_signal_exit(proc, getattr(signal, sig), code)
+
+
+@pytest.mark.parametrize("sig,code", [("SIGINT", 130), ("SIGTERM", 143)])
+def test_a_signal_during_numba_compilation_gives_the_exit_code_promptly(tmp_path, sig, code):
+    """A cold compile cache: the kernels take tens of seconds to compile; a signal in that
+    time must still end the run within seconds."""
+    import signal
+    import time
+
+    cache = tmp_path / "numba-cache"
+    cache.mkdir()
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    out = tmp_path / "out"
+    proc = _start_cli("run", write_case(tmp_path), "-o", out, "--no-progress", env=env)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not any(p.is_file() for p in cache.rglob("*")):
+        time.sleep(0.05)          # the first compiled kernel written: compilation under way
+    assert proc.poll() is None
+    assert any(p.is_file() for p in cache.rglob("*"))
+    _assert_prompt_signal_exit(proc, getattr(signal, sig), code, out)
+    assert not (out / "history.csv").exists()                 # no time step was taken
+
+
+def test_sigterm_two_seconds_after_a_cold_start(tmp_path):
+    import signal
+    import time
+
+    cache = tmp_path / "numba-cache"
+    cache.mkdir()
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    proc = _start_cli("run", write_case(tmp_path), "-o", tmp_path / "out", "--no-progress",
+                      env=env)
+    time.sleep(2.0)
+    assert proc.poll() is None
+    _assert_prompt_signal_exit(proc, signal.SIGTERM, 143, tmp_path / "out")

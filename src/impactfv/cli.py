@@ -2,6 +2,10 @@
 
 Exit codes: 0 success, 2 input error (one line, no traceback), 3 failed simulation,
 130/143 interrupted, 141 the output pipe was closed by its reader.
+
+Only the standard library and the light modules below are imported here: the signal
+handlers are installed first thing in :func:`main`, before numpy, numba and the case schema
+load (a Ctrl-C at any moment gives exit 130 and one line, never a traceback).
 """
 
 from __future__ import annotations
@@ -11,12 +15,13 @@ import os
 import sys
 from pathlib import Path
 
+from . import interrupts
 from .version import __version__
-from .errors import InputError, SimulationError, printable
-from .pipeline import Interrupted
+from .errors import InputError, Interrupted, SimulationError, printable
 
 
 def main(argv=None) -> int:
+    interrupts.install()
     parser = argparse.ArgumentParser(prog="impactfv", description=__doc__.splitlines()[0])
     parser.add_argument("--version", action="version", version=f"impactfv {__version__}")
     parser.add_argument("--debug", action="store_true", help="show tracebacks")

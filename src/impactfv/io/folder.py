@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .. import interrupts
 from ..errors import InputError
 
 LOCK_NAME = ".impactfv.lock"
@@ -54,6 +55,7 @@ class OutputFolder:
                                      "with -o") from None
                 self.lock.unlink(missing_ok=True)     # stale: its process is gone
                 continue
+            interrupts.remove_on_exit(self.lock)   # a signal before the loop ends at once
             with os.fdopen(fd, "w") as fh:
                 fh.write(f"{os.getpid()}\n")
             self.held = True
@@ -71,5 +73,6 @@ class OutputFolder:
     def __exit__(self, *exc):
         if self.held:
             self.lock.unlink(missing_ok=True)
+            interrupts.keep_on_exit(self.lock)
             self.held = False
         return False

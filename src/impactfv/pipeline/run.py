@@ -168,6 +168,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             if t + dt >= target * (1 - 1e-12):
                 dt = target - t
             stepper.step(dt)
+            stop.armed()       # the kernels are compiled: a signal now stops after a step
             t = target if abs(t + dt - target) <= 1e-12 * end else t + dt
             steps += 1
             stepper.check(steps, t)
