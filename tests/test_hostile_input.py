@@ -357,3 +357,236 @@ def test_sigterm_two_seconds_after_a_cold_start(tmp_path):
     time.sleep(2.0)
     assert proc.poll() is None
     _assert_prompt_signal_exit(proc, signal.SIGTERM, 143, tmp_path / "out")
+
+
+# -------------------------------------------------------------- class 3: restart trusts nothing
+
+def _history(folder):
+    import numpy as np
+
+    return np.loadtxt(folder / "history.csv", delimiter=",", skiprows=1, ndmin=2)
+
+
+def _strict_json(path):
+    def refuse(name):
+        raise ValueError(f"{path}: not strict JSON ({name})")
+    return json.loads(path.read_text(), parse_constant=refuse)
+
+
+def _frames_consistent(out):
+    """fields.pvd lists exactly the frames on disk, each readable, times increasing."""
+    import xml.etree.ElementTree as ET
+
+    import meshio
+    import numpy as np
+
+    listed = [(float(d.get("timestep")), d.get("file"))
+              for d in ET.parse(out / "fields.pvd").getroot().iter("DataSet")]
+    assert sorted(p.name for p in out.glob("fields_*.vtu")) == [f for _, f in listed]
+    assert np.all(np.diff([t for t, _ in listed]) > 0)
+    for _, name in listed:
+        assert np.all(np.isfinite(meshio.read(out / name).point_data["velocity"]))
+    return listed
+
+
+RESTART_RUN = 'output_interval = 5e-8'
+
+
+def _checkpointed_run(tmp_path, end_time="4e-7", every="1e-7", name="case.toml"):
+    path = write_case(tmp_path, name=name, end_time=end_time, run_extra=RESTART_RUN,
+                      vx='"50*sin(3000*x)"')
+    out = tmp_path / "out"
+    proc = run_cli("run", path, "-o", out, "--no-progress", "--checkpoint-every", every)
+    assert proc.returncode == 0, proc.stderr
+    return path, out
+
+
+def _snapshot_of(out):
+    return {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+
+
+def test_restart_refuses_a_changed_mesh_file_with_the_same_node_count(tmp_path):
+    import meshio
+    import numpy as np
+
+    from impactfv.mesh.generators import rectangle
+
+    mesh = rectangle((0.0, 0.0), (0.004, 0.001), (8, 2))
+    meshio.write(tmp_path / "bar.vtu", meshio.Mesh(mesh.points, [("triangle", mesh.cells)]))
+    path = mesh_case(tmp_path, "bar.vtu")
+    out = tmp_path / "out"
+    assert run_cli("run", path, "-o", out, "--no-progress", "--checkpoint-every",
+                   "1e-7").returncode == 0
+    before = _snapshot_of(out)
+    moved = mesh.points.copy()
+    interior = np.flatnonzero((moved[:, 0] > 0) & (moved[:, 0] < 0.004) & (moved[:, 1] > 0)
+                              & (moved[:, 1] < 0.001))[0]
+    moved[interior] += 2e-5                    # same nodes, same triangles, one node moved
+    meshio.write(tmp_path / "bar.vtu", meshio.Mesh(moved, [("triangle", mesh.cells)]))
+    proc = run_cli("run", path, "--restart", out, "--no-progress")
+    assert_input_error(proc, "checkpoint", "different case", "body[0].mesh")
+    assert _snapshot_of(out) == before         # nothing on disk touched
+
+
+@pytest.mark.parametrize("change,key", [
+    (("cfl = 0.4", "cfl = 0.3"), "run.cfl"),
+    (("density = 8930.0", "density = 9000.0"), "material[0].density"),
+    (("divisions = [8, 2]", "divisions = [4, 4]"), "body[0].mesh.divisions"),
+])
+def test_restart_names_the_key_that_changed(tmp_path, change, key):
+    path = write_case(tmp_path, run_extra="cfl = 0.4")
+    out = tmp_path / "out"
+    assert run_cli("run", path, "-o", out, "--no-progress", "--checkpoint-every",
+                   "1e-7").returncode == 0
+    before = _snapshot_of(out)
+    text = path.read_text()
+    assert change[0] in text
+    path.write_text(text.replace(*change))
+    line = assert_input_error(run_cli("run", path, "--restart", out, "--no-progress"),
+                              "different case", key, "run.end_time")
+    assert line.count("changed") == 1
+    assert _snapshot_of(out) == before
+
+
+def test_restart_continues_a_finished_run_to_a_later_end_time(tmp_path):
+    """end_time may change on a restart: the continued run gives the same numbers as one
+    run straight to the later end time."""
+    import numpy as np
+
+    path, out = _checkpointed_run(tmp_path, end_time="2e-7")
+    straight = write_case(tmp_path, name="straight.toml", end_time="4e-7",
+                          run_extra=RESTART_RUN, vx='"50*sin(3000*x)"')
+    assert run_cli("run", straight, "-o", tmp_path / "straight", "--no-progress").returncode == 0
+    path.write_text(path.read_text().replace("end_time = 2e-7", "end_time = 4e-7"))
+    proc = run_cli("run", path, "--restart", out, "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    rows, reference = _history(out), _history(tmp_path / "straight")
+    assert rows.shape == reference.shape
+    assert np.allclose(rows, reference, rtol=1e-12, atol=1e-300)
+    listed = _frames_consistent(out)
+    assert [name for _, name in listed] == [f"fields_{k:04d}.vtu" for k in range(9)]
+    assert _strict_json(out / "summary.json")["end_time"] == pytest.approx(4e-7)
+
+
+def test_restart_with_a_new_output_interval_leaves_no_old_frames(tmp_path):
+    """Restarting from the middle of a run with another output_interval: frames after the
+    checkpoint are the new run's only (none of the old run's left mixed in)."""
+    import shutil
+
+    import numpy as np
+
+    path, out = _checkpointed_run(tmp_path, end_time="4e-7")
+    assert len(list(out.glob("fields_*.vtu"))) == 9
+    newest = sorted((out / "checkpoints").glob("*.npz"))
+    for later in newest[1:]:                   # as if the run had stopped after 1e-7 s
+        later.unlink()
+    shutil.copy(out / "history.csv", tmp_path / "old_history.csv")
+    path.write_text(path.read_text().replace("output_interval = 5e-8",
+                                             "output_interval = 1.5e-7"))
+    proc = run_cli("run", path, "--restart", out, "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    times = [t for t, _ in _frames_consistent(out)]
+    assert np.allclose(times, [0, 5e-8, 1e-7, 1.5e-7, 3e-7, 4e-7], rtol=1e-12, atol=0)
+    rows = _history(out)
+    assert np.all(np.diff(rows[:, 0]) > 0) and rows[-1, 0] == pytest.approx(4e-7, rel=1e-12)
+
+
+def test_restart_refuses_an_end_time_before_the_checkpoint(tmp_path):
+    path, out = _checkpointed_run(tmp_path, end_time="4e-7", every="2e-7")
+    before = _snapshot_of(out)
+    path.write_text(path.read_text().replace("end_time = 4e-7", "end_time = 1e-7"))
+    assert_input_error(run_cli("run", path, "--restart", out, "--no-progress"),
+                       "run.end_time", "before the time of the checkpoint")
+    assert _snapshot_of(out) == before
+
+
+def _corrupt(path, how):
+    data = path.read_bytes()
+    if how == "truncated":
+        path.write_bytes(data[:len(data) // 2])
+    elif how == "empty":
+        path.write_bytes(b"")
+    elif how == "garbage":
+        path.write_bytes(b"\x00garbage" * 100)
+    elif how == "flipped":                    # the last byte of the velocities changed
+        import zipfile
+
+        with zipfile.ZipFile(path) as archive:
+            info = archive.getinfo("state_v.npy")
+        start = info.header_offset + 30 + int.from_bytes(
+            data[info.header_offset + 26:info.header_offset + 28], "little") + int.from_bytes(
+            data[info.header_offset + 28:info.header_offset + 30], "little")
+        k = start + info.compress_size - 1
+        path.write_bytes(data[:k] + bytes([data[k] ^ 0x01]) + data[k + 1:])
+
+
+def _craft(path, **changes):
+    import numpy as np
+
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    for key, value in changes.items():
+        arrays[key] = value(arrays[key]) if callable(value) else np.asarray(value)
+    with open(path, "wb") as fh:
+        np.savez(fh, **arrays)
+
+
+BAD_CHECKPOINTS = {
+    "truncated": lambda p: _corrupt(p, "truncated"),
+    "empty": lambda p: _corrupt(p, "empty"),
+    "garbage": lambda p: _corrupt(p, "garbage"),
+    "flipped-byte": lambda p: _corrupt(p, "flipped"),
+    "nan-time": lambda p: _craft(p, t=float("nan")),
+    "infinite-time": lambda p: _craft(p, t=float("inf")),
+    "negative-time": lambda p: _craft(p, t=-1.0),
+    "negative-steps": lambda p: _craft(p, steps=-3),
+    "nan-velocity": lambda p: _craft(p, state_v=lambda v: v * float("nan")),
+    "wrong-shape": lambda p: _craft(p, state_F=lambda F: F[:-1]),
+    "short-history": lambda p: _craft(p, h_time=lambda h: h[:-1]),
+    "foreign-frame-name": lambda p: _craft(
+        p, snapshot_files=lambda f: [("../../escape.vtu" if k == 1 else n)
+                                     for k, n in enumerate(f)]),
+}
+
+
+@pytest.mark.parametrize("damage", sorted(BAD_CHECKPOINTS))
+def test_a_bad_newest_checkpoint_falls_back_to_the_previous_one(tmp_path, damage):
+    import numpy as np
+
+    path, out = _checkpointed_run(tmp_path)
+    reference = _history(out)
+    checkpoints = sorted((out / "checkpoints").glob("*.npz"))
+    assert len(checkpoints) >= 3
+    BAD_CHECKPOINTS[damage](checkpoints[-1])
+    proc = run_cli("run", path, "--restart", out, "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    warning = proc.stderr.strip().splitlines()
+    assert len(warning) == 1 and "warning" in warning[0], proc.stderr
+    assert checkpoints[-1].name in warning[0] and checkpoints[-2].name in warning[0]
+    assert "Traceback" not in proc.stderr
+    assert np.allclose(_history(out), reference, rtol=1e-12, atol=1e-300)
+    assert _strict_json(out / "summary.json")["status"] == "completed"
+    _frames_consistent(out)
+    # kept, under a name the next restart does not pick
+    assert (out / "checkpoints" / (checkpoints[-1].name + ".unreadable")).exists()
+
+
+@pytest.mark.parametrize("damage", ["truncated", "nan-time", "garbage"])
+def test_no_good_checkpoint_is_an_input_error_and_changes_nothing(tmp_path, damage):
+    path, out = _checkpointed_run(tmp_path, end_time="2e-7", every="2e-7")
+    checkpoints = sorted((out / "checkpoints").glob("*.npz"))
+    assert len(checkpoints) == 1
+    BAD_CHECKPOINTS[damage](checkpoints[0])
+    before = _snapshot_of(out)
+    proc = run_cli("run", path, "--restart", out, "--no-progress")
+    assert_input_error(proc, checkpoints[0].name, "unreadable checkpoint")
+    assert _snapshot_of(out) == before
+
+
+def test_summary_json_is_strict_json_even_with_non_finite_values(tmp_path):
+    from impactfv.io.writers import write_summary
+
+    write_summary(tmp_path / "s.json", {"a": float("nan"), "b": [1.0, float("inf")],
+                                        "c": {"d": -float("inf")}, "e": 2.5})
+    assert _strict_json(tmp_path / "s.json") == {"a": None, "b": [1.0, None],
+                                                 "c": {"d": None}, "e": 2.5}

@@ -12,7 +12,7 @@ from ..errors import InputError
 LOCK_NAME = ".impactfv.lock"
 # what a run writes; a fresh run removes these (and only these) from an earlier run
 OUTPUT_PATTERNS = ("fields_*.vtu", "fields.pvd", "history.csv", "summary.json",
-                   "checkpoints/checkpoint_*.npz")
+                   "checkpoints/checkpoint_*.npz", "checkpoints/checkpoint_*.npz.unreadable")
 
 
 def _alive(pid: int) -> bool:
