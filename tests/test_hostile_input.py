@@ -590,3 +590,136 @@ def test_summary_json_is_strict_json_even_with_non_finite_values(tmp_path):
                                         "c": {"d": -float("inf")}, "e": 2.5})
     assert _strict_json(tmp_path / "s.json") == {"a": None, "b": [1.0, None],
                                                  "c": {"d": None}, "e": 2.5}
+
+
+# -------------------------------------------------------------- class 5: sizes that cannot work
+
+MEASURE = r"""
+import json, os, resource, sys, tempfile
+from impactfv import load_case, run
+
+tmp = tempfile.mkdtemp()
+run(load_case(sys.argv[1]), os.path.join(tmp, "warm"), progress=False)   # imports, kernels
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+run(load_case(sys.argv[2]), os.path.join(tmp, "big"), progress=False)
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+print(json.dumps({"added": peak - base}))
+"""
+
+
+def _size_case(tmp_path, name, divisions, contact=False):
+    wall = ('[[contact]]\nbodies = ["bar"]\n'
+            'wall = { point = [-0.0001, 0.0], normal = [1.0, 0.0] }\n') if contact else ""
+    path = write_case(tmp_path, name=name, end_time="1e-5", run_extra="max_steps = 2",
+                      extra=wall)
+    path.write_text(path.read_text().replace("size = [0.004, 0.001], divisions = [8, 2]",
+                                             f"size = [0.01, 0.01], divisions = {divisions}"))
+    return path
+
+
+def _reported_memory(check_stdout):
+    import re
+
+    line = next(l for l in check_stdout.splitlines() if l.startswith("memory:"))
+    value, unit, per_node = re.search(r"about ([\d.]+) (KiB|MiB|GiB) \((\d+) bytes per node",
+                                      line).groups()
+    return float(value) * {"KiB": 2**10, "MiB": 2**20, "GiB": 2**30}[unit], int(per_node)
+
+
+@pytest.mark.parametrize("divisions,contact", [([140, 140], False), ([280, 280], False),
+                                               ([447, 447], False), ([280, 280], True)],
+                         ids=["20k-nodes", "80k-nodes", "200k-nodes", "80k-nodes-contact"])
+def test_memory_estimate_of_check_matches_the_measured_peak(tmp_path, divisions, contact):
+    """What `impactfv check` reports is within 30% of the peak resident memory a run adds
+    (ru_maxrss of a fresh process, over its value after imports and a tiny warm-up run)."""
+    import subprocess
+    import sys
+
+    big = _size_case(tmp_path, "big.toml", divisions, contact)
+    tiny = _size_case(tmp_path, "tiny.toml", [4, 4], contact)
+    check = run_cli("check", big)
+    assert check.returncode == 0, check.stderr
+    estimate, per_node = _reported_memory(check.stdout)
+    proc = subprocess.run([sys.executable, "-c", MEASURE, str(tiny), str(big)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    measured = json.loads(proc.stdout.strip().splitlines()[-1])["added"]
+    assert 0.7 * measured <= estimate <= 1.3 * measured, (estimate, measured)
+    assert 1000 < per_node < 3000                # not the ~530 B/node of the state alone
+
+
+@pytest.mark.parametrize("mesh,key", [
+    ('{ generator = "rectangle", origin = [0.0, 0.0], size = [1.0, 1.0], '
+     'divisions = [100000, 100000] }', "body[0].mesh.divisions"),
+    ('{ generator = "disc", centre = [0.0, 0.0], radius = 1.0, rings = 1000000 }',
+     "body[0].mesh.rings"),
+    ('{ generator = "rectangle", origin = [0.0, 0.0], size = [1.0, 1.0], '
+     'divisions = [1000000000000000000000, 3] }', "body[0].mesh.divisions"),
+], ids=["1e10-nodes", "3e12-node-disc", "1e21-divisions"])
+def test_absurd_generated_meshes_are_refused_before_they_are_built(tmp_path, mesh, key):
+    import subprocess
+    import sys
+
+    path = tmp_path / "case.toml"
+    path.write_text(write_case(tmp_path).read_text().replace(
+        'mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], '
+        'divisions = [8, 2] }', f"mesh = {mesh}"))
+    for command in (["check", path], ["run", path, "-o", tmp_path / "out"]):
+        # the peak memory of the command, measured in a process of its own
+        wrapper = ("import resource, subprocess, sys; p = subprocess.run(sys.argv[1:], "
+                   "capture_output=True, text=True); sys.stderr.write(p.stderr); "
+                   "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); "
+                   "sys.exit(p.returncode)")
+        proc = subprocess.run([sys.executable, "-c", wrapper, sys.executable, "-m",
+                               "impactfv.cli", *map(str, command)],
+                              capture_output=True, text=True, timeout=120)
+        line = assert_input_error(proc, key, "nodes", "bytes per node", "memory available")
+        assert "TiB" in line
+        assert int(proc.stdout.strip()) * 1024 < 2**30         # nothing big was allocated
+    assert not (tmp_path / "out" / "history.csv").exists()
+
+
+def test_run_refuses_a_mesh_file_case_beyond_the_memory_available(tmp_path):
+    """A mesh file's size is known once it is read: run refuses before it assembles the
+    scheme's arrays, check reports the figures and exits 2, earlier outputs stay."""
+    import meshio
+
+    from impactfv.mesh.generators import rectangle
+
+    mesh = rectangle((0.0, 0.0), (0.004, 0.001), (80, 20))
+    meshio.write(tmp_path / "bar.vtu", meshio.Mesh(mesh.points, [("triangle", mesh.cells)]))
+    path = mesh_case(tmp_path, "bar.vtu")
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "history.csv").write_text("precious\n")
+    env = dict(os.environ, IMPACTFV_MEMORY_LIMIT="20M")
+    check = run_cli("check", path, env=env)
+    assert "PROBLEM: the run needs about" in check.stdout and "1,701 nodes" in check.stdout
+    assert_input_error(check, "memory available", "20 MiB")
+    proc = run_cli("run", path, "-o", out, "--no-progress", env=env)
+    assert_input_error(proc, str(path), "bytes per node", "more than the 20 MiB")
+    assert (out / "history.csv").read_text() == "precious\n"
+    ok = run_cli("run", path, "-o", out, "--no-progress",
+                 env=dict(os.environ, IMPACTFV_MEMORY_LIMIT="4G"))
+    assert ok.returncode == 0, ok.stderr
+
+
+def test_a_memory_error_anywhere_is_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    path = write_case(tmp_path)
+    script = ("import sys, impactfv.scheme.discretisation as d\n"
+              "def boom(*a, **k):\n    raise MemoryError('Unable to allocate 74.5 GiB')\n"
+              "d.median_dual = boom\n"
+              "from impactfv.cli import main\nsys.exit(main(sys.argv[1:]))\n")
+    proc = subprocess.run([sys.executable, "-c", script, "run", str(path), "-o",
+                           str(tmp_path / "out"), "--no-progress"],
+                          capture_output=True, text=True)
+    assert_input_error(proc, "out of memory", "impactfv check")
+
+
+def test_a_bad_memory_limit_is_an_input_error(tmp_path):
+    proc = run_cli("check", write_case(tmp_path),
+                   env=dict(os.environ, IMPACTFV_MEMORY_LIMIT="lots"))
+    assert_input_error(proc, "IMPACTFV_MEMORY_LIMIT", "size in bytes")

@@ -10,19 +10,14 @@ from .case import Case
 from .materials import CP
 from .scheme.discretisation import discretise
 
-# float64 work arrays per node the FV stepper allocates beyond the discretisation
-# (scheme.stepper.FVStepper): v, F, x, their stage copies, P, grad, vmin, vmax, phi, force, dF
-def _stepper_doubles_per_node(d):
-    return 2 * (d + d * d + d) + d * d + d * d + 3 * d + d + d * d
-
-
 def check_report(case: Case) -> str:
     return check_case(case)[0]
 
 
 def check_case(case: Case) -> tuple[str, list[str]]:
     """The report of ``impactfv check`` and the problems in it that ``run`` would refuse."""
-    from .pipeline.run import step_count_problem
+    from .memory import available_bytes, estimate_case, format_bytes, memory_problem
+    from .pipeline.run import expected_steps, step_count_problem
 
     problems = []
     disc = discretise(case)
@@ -43,8 +38,6 @@ def check_case(case: Case) -> tuple[str, list[str]]:
     h_over_c = float(np.min(disc.node_length / disc.material_table[disc.node_material, CP]))
     dt = case.run.cfl * h_over_c
     steps = math.ceil(case.run.end_time / dt)
-    nbytes = sum(a.nbytes for a in vars(disc).values() if isinstance(a, np.ndarray))
-    nbytes += 8 * _stepper_doubles_per_node(disc.dim) * disc.n_nodes
     lines.append(f"time step: {dt:.4e} s (cfl {case.run.cfl}) at the start; about {steps} steps "
                  f"to {case.run.end_time:.4e} s ({2 * steps} Runge-Kutta stages)")
     if (problem := step_count_problem(case, dt)):
@@ -52,9 +45,14 @@ def check_case(case: Case) -> tuple[str, list[str]]:
         lines.append(f"PROBLEM: {problem} (run will refuse this case)")
     lines.append(f"scheme: {case.run.method}, order {case.run.order}, limiter "
                  f"{case.run.limiter}")
-    lines.append(f"memory: about {nbytes / 2**20:.1f} MiB for the state and work arrays "
-                 f"({nbytes / disc.n_nodes:.0f} bytes per node, {disc.n_nodes} nodes, "
-                 f"{disc.n_edges} edges)")
+    memory = estimate_case(case, expected_steps(case, dt))
+    available = available_bytes()
+    lines.append(f"memory: {memory.describe()}, of "
+                 f"{format_bytes(available) + ' available' if available is not None else 'an unknown amount available'}")
+    if (problem := memory_problem(memory, available)):
+        problem = f"the run {problem}"
+        problems.append(problem)
+        lines.append(f"PROBLEM: {problem} (run will refuse this case)")
     if case.contacts:
         from .geometry.penetration import find_overlaps
         for k, c in enumerate(case.contacts):

@@ -58,6 +58,13 @@ def main(argv=None) -> int:
             raise
         print(f"impactfv: simulation failed: {printable(exc)}", file=sys.stderr)
         return 3
+    except MemoryError:
+        if args.debug:
+            raise
+        print("impactfv: error: out of memory: the case needs more memory than this machine "
+              "has available (impactfv check case.toml reports the estimate); use a coarser "
+              "mesh", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("impactfv: interrupted", file=sys.stderr)
         return 130

@@ -30,6 +30,7 @@ from ..io.checkpoint import (RESTART_MAY_CHANGE, BadCheckpoint, case_description
                              case_fingerprint, changed_keys, load_good_checkpoint,
                              save_checkpoint)
 from ..io.folder import OutputFolder
+from ..memory import estimate_case, memory_problem
 from ..io.writers import SnapshotWriter, write_history_csv, write_summary
 from .history import History
 from .progress import progress_bar
@@ -50,6 +51,25 @@ def step_count_problem(case: Case, dt: float, t: float = 0.0, steps_done: int = 
                 f"{case.run.end_time:.3g} s (cfl {case.run.cfl}), more than the "
                 f"{DEFAULT_MAX_STEPS:,} allowed unless run.max_steps is set")
     return None
+
+
+def expected_steps(case: Case, dt: float, t: float = 0.0, steps_done: int = 0) -> int:
+    """The steps a run will take (history rows), from the stable time step ``dt``."""
+    cap = case.run.max_steps or DEFAULT_MAX_STEPS
+    remaining = (case.run.end_time - t) / dt if dt > 0 else math.inf
+    return int(min(cap, steps_done + math.ceil(min(remaining, 1e18))))
+
+
+def history_memory_problem(case: Case, dt: float, t: float = 0.0,
+                           steps_done: int = 0) -> str | None:
+    """The memory check again, now that the number of history rows is known."""
+    problem = memory_problem(estimate_case(case, expected_steps(case, dt, t, steps_done)))
+    return f"the run {problem}" if problem else None
+
+
+def _restart_problem(case, dt, t, steps_done):
+    return step_count_problem(case, dt, t, steps_done) or \
+        history_memory_problem(case, dt, t, steps_done)
 
 
 @dataclass
@@ -78,6 +98,8 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     from ..geometry.penetration import find_overlaps
     from .methods import make_stepper
 
+    if (problem := memory_problem(estimate_case(case))):
+        raise InputError(f"{case.source}: the run {problem}")
     overlaps = find_overlaps(case) if case.contacts else []
     if overlaps:
         raise InputError(f"{case.source}: {overlaps[0]}")
@@ -86,14 +108,15 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     schedule = Schedule(case.run.end_time, case.run.output_interval,
                         case.run.max_steps or DEFAULT_MAX_STEPS)
     if not restart:
-        problem = step_count_problem(case, stepper.stable_dt())
+        dt = stepper.stable_dt()
+        problem = step_count_problem(case, dt) or history_memory_problem(case, dt)
         if problem:
             raise InputError(f"{case.source}: {problem}")
     return run_stepper(stepper, schedule, output_dir, progress=progress, restart=restart,
                        checkpoint_every=checkpoint_every, handle_signals=handle_signals,
                        fingerprint=case_fingerprint(case), title=case.title,
                        wall_start=wall_start, description=case_description(case),
-                       preflight=lambda s, t, n: step_count_problem(case, s.stable_dt(), t, n),
+                       preflight=lambda s, t, n: _restart_problem(case, s.stable_dt(), t, n),
                        source=case.source)
 
 
