@@ -65,6 +65,18 @@ def test_two_argument_functions_still_work(tmp_path):
     assert proc.returncode == 0, proc.stderr
 
 
+@pytest.mark.parametrize("expression", ["100*((-8)**(1/3) + 0*x)", "(-1)**0.5 * 10 + x",
+                                        "(-2.0)**x"])
+def test_an_expression_with_complex_values_is_refused_not_cut_to_its_real_part(tmp_path,
+                                                                               expression):
+    """Python floats give (-8) ** (1/3) = 1 + 1.73j; its real part must not silently
+    become the velocity."""
+    path = write_case(tmp_path, vx=f'"{expression}"')
+    for args in (("check", path), ("run", path, "-o", tmp_path / "out")):
+        assert_input_error(run_cli(*args), "body[0].velocity", "non-finite")
+    assert not (tmp_path / "out" / "history.csv").exists()
+
+
 # -------------------------------------------------------------- class 7: small holes
 
 @pytest.mark.parametrize("run_extra,key", [("order = true", "run.order"),
