@@ -735,3 +735,18 @@ def test_a_bad_memory_limit_is_an_input_error(tmp_path):
     proc = run_cli("check", write_case(tmp_path),
                    env=dict(os.environ, IMPACTFV_MEMORY_LIMIT="lots"))
     assert_input_error(proc, "IMPACTFV_MEMORY_LIMIT", "size in bytes")
+
+
+def test_a_history_of_millions_of_steps_counts_in_the_memory(tmp_path):
+    """One history row per step: 5 million steps of a 27-node bar need about 1 GiB."""
+    path = write_case(tmp_path, end_time="1e300", run_extra="max_steps = 5000000")
+    env = dict(os.environ, IMPACTFV_MEMORY_LIMIT="500M")
+    check = run_cli("check", path, env=env)
+    assert "PROBLEM: the run needs about" in check.stdout
+    assert_input_error(check, "GiB", "more than the 500 MiB")
+    out = tmp_path / "out"
+    assert_input_error(run_cli("run", path, "-o", out, "--no-progress", env=env),
+                       "GiB", "more than the 500 MiB")
+    assert not (out / "history.csv").exists()
+    path.write_text(path.read_text().replace("max_steps = 5000000", "max_steps = 5"))
+    assert run_cli("run", path, "-o", out, "--no-progress", env=env).returncode == 0

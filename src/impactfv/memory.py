@@ -256,7 +256,8 @@ def _virtual_bytes() -> int:
         return 0
 
 
-def _resident_bytes() -> int:
+def resident_bytes() -> int:
+    """The resident memory of this process now (0 if the system cannot tell)."""
     try:
         with open("/proc/self/statm") as fh:
             return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
@@ -267,17 +268,19 @@ def _resident_bytes() -> int:
 def needed_bytes(est: MemoryEstimate) -> int:
     """What the run still has to take from the machine: the case's arrays, plus the part of
     the runtime this process does not hold yet."""
-    return est.total + max(RUNTIME_BYTES - _resident_bytes(), 0)
+    return est.total + max(RUNTIME_BYTES - resident_bytes(), 0)
 
 
-def memory_problem(est: MemoryEstimate, available: int | None = None) -> str | None:
+def memory_problem(est: MemoryEstimate, available: int | None = None,
+                   held: int = 0) -> str | None:
     """A message when the estimate exceeds the available memory; None when it fits or the
-    machine cannot tell."""
+    machine cannot tell. ``held``: bytes of the estimate this process has already taken
+    (they are no longer available, but count in the estimate)."""
     available = available_bytes() if available is None else available
     if available is None:
         return None
     need = needed_bytes(est)
-    if need <= available:
+    if need - max(held, 0) <= available:
         return None
     runtime = need - est.total
     plus = f" plus {format_bytes(runtime)} for Python and the compiled kernels" if runtime \

@@ -30,7 +30,7 @@ from ..io.checkpoint import (RESTART_MAY_CHANGE, BadCheckpoint, case_description
                              case_fingerprint, changed_keys, load_good_checkpoint,
                              save_checkpoint)
 from ..io.folder import OutputFolder
-from ..memory import estimate_case, memory_problem
+from ..memory import estimate_case, memory_problem, resident_bytes
 from ..io.writers import SnapshotWriter, write_history_csv, write_summary
 from .history import History
 from .progress import progress_bar
@@ -60,16 +60,13 @@ def expected_steps(case: Case, dt: float, t: float = 0.0, steps_done: int = 0) -
     return int(min(cap, steps_done + math.ceil(min(remaining, 1e18))))
 
 
-def history_memory_problem(case: Case, dt: float, t: float = 0.0,
-                           steps_done: int = 0) -> str | None:
-    """The memory check again, now that the number of history rows is known."""
-    problem = memory_problem(estimate_case(case, expected_steps(case, dt, t, steps_done)))
+def history_memory_problem(case: Case, dt: float, t: float = 0.0, steps_done: int = 0,
+                           held: int = 0) -> str | None:
+    """The memory check again, now that the number of history rows is known; ``held``:
+    bytes the stepper has already taken since the first check."""
+    problem = memory_problem(estimate_case(case, expected_steps(case, dt, t, steps_done)),
+                             held=held)
     return f"the run {problem}" if problem else None
-
-
-def _restart_problem(case, dt, t, steps_done):
-    return step_count_problem(case, dt, t, steps_done) or \
-        history_memory_problem(case, dt, t, steps_done)
 
 
 @dataclass
@@ -104,19 +101,24 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     if overlaps:
         raise InputError(f"{case.source}: {overlaps[0]}")
     wall_start = _time.perf_counter()
+    resident = resident_bytes()
     stepper = make_stepper(case)
+    held = resident_bytes() - resident
     schedule = Schedule(case.run.end_time, case.run.output_interval,
                         case.run.max_steps or DEFAULT_MAX_STEPS)
-    if not restart:
+
+    def refuse(stepper, t, steps):
         dt = stepper.stable_dt()
-        problem = step_count_problem(case, dt) or history_memory_problem(case, dt)
-        if problem:
-            raise InputError(f"{case.source}: {problem}")
+        return step_count_problem(case, dt, t, steps) or \
+            history_memory_problem(case, dt, t, steps, held)
+
+    if not restart and (problem := refuse(stepper, 0.0, 0)):
+        raise InputError(f"{case.source}: {problem}")
     return run_stepper(stepper, schedule, output_dir, progress=progress, restart=restart,
                        checkpoint_every=checkpoint_every, handle_signals=handle_signals,
                        fingerprint=case_fingerprint(case), title=case.title,
                        wall_start=wall_start, description=case_description(case),
-                       preflight=lambda s, t, n: _restart_problem(case, s.stable_dt(), t, n),
+                       preflight=refuse,
                        source=case.source)
 
 
