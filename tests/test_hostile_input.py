@@ -717,6 +717,7 @@ def test_run_refuses_a_mesh_file_case_beyond_the_memory_available(tmp_path):
     env = dict(os.environ, IMPACTFV_MEMORY_LIMIT="20M")
     check = run_cli("check", path, env=env)
     assert "PROBLEM: the run needs about" in check.stdout and "1,701 nodes" in check.stdout
+    assert "time step: not computed" in check.stdout     # no dual built for a case too large
     assert_input_error(check, "memory available", "20 MiB")
     proc = run_cli("run", path, "-o", out, "--no-progress", env=env)
     assert_input_error(proc, str(path), "bytes per node", "more than the 20 MiB")

@@ -365,6 +365,19 @@ def check_case_outcome(data, sources=("<dict>: ",), strict_energy=True) -> str:
     return "ran"
 
 
+@pytest.fixture
+def one_thread():
+    """Tiny meshes: numba's thread pool costs more than it gives (20 s instead of 2 s for
+    the case fuzzer on two cores, 150 s on a loaded machine); results do not depend on the
+    thread count (tests/test_regression.py)."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    yield
+    numba.set_num_threads(before)
+
+
 def _fuzz_report(name, outcomes):
     total = sum(outcomes.values())
     print(f"\n{name}: {dict(outcomes)}; reached the solver: "
@@ -372,7 +385,7 @@ def _fuzz_report(name, outcomes):
     return total
 
 
-def test_fuzzed_cases_reach_the_solver_and_stay_physical():
+def test_fuzzed_cases_reach_the_solver_and_stay_physical(one_thread):
     outcomes = collections.Counter()
 
     @settings(max_examples=150, deadline=None, database=None, derandomize=True,
@@ -392,7 +405,7 @@ def test_fuzzed_cases_reach_the_solver_and_stay_physical():
     assert outcomes["refused"] >= 1                          # and the parser
 
 
-def test_fuzzed_expressions_reach_the_solver_and_stay_physical():
+def test_fuzzed_expressions_reach_the_solver_and_stay_physical(one_thread):
     outcomes = collections.Counter()
     odd = st.one_of(st.text(max_size=40), st.sampled_from(
         ["x\x00", "(" * 300 + "x" + ")" * 300, "1" * 400, "x**9e9", "1/0", "sin()"]))
@@ -480,7 +493,7 @@ def test_a_dart_of_two_triangles_keeps_its_energy_bounded(tmp_path, order):
         assert energy.max() <= 1.05 * energy[0] and energy[-1] < energy[0]
 
 
-def test_fuzzed_mesh_files_reach_the_solver_and_stay_physical(tmp_path_factory):
+def test_fuzzed_mesh_files_reach_the_solver_and_stay_physical(tmp_path_factory, one_thread):
     outcomes, kinds = collections.Counter(), collections.Counter()
     folder = tmp_path_factory.mktemp("mesh")
 

@@ -20,7 +20,12 @@ def check_case(case: Case) -> tuple[str, list[str]]:
     from .pipeline.run import expected_steps, step_count_problem
 
     problems = []
-    disc = discretise(case)
+    available = available_bytes()
+    if (problem := memory_problem(estimate_case(case), available)):
+        # the scheme's arrays would not fit: report the meshes and the memory only
+        disc = None
+    else:
+        disc = discretise(case)
     lines = [f"case: {case.source}" + (f"  ({case.title})" if case.title else "")]
     for body in case.bodies:
         q = body.mesh.quality()
@@ -35,20 +40,25 @@ def check_case(case: Case) -> tuple[str, list[str]]:
                      f"{mat.p_impedance:.4g} kg/(m^2 s)")
         regions = ", ".join(f"{k} ({len(v)} edges)" for k, v in sorted(body.mesh.regions.items()))
         lines.append(f"  boundary regions: {regions or 'none'}")
-    h_over_c = float(np.min(disc.node_length / disc.material_table[disc.node_material, CP]))
-    dt = case.run.cfl * h_over_c
-    steps = math.ceil(case.run.end_time / dt)
-    lines.append(f"time step: {dt:.4e} s (cfl {case.run.cfl}) at the start; about {steps} steps "
-                 f"to {case.run.end_time:.4e} s ({2 * steps} Runge-Kutta stages)")
-    if (problem := step_count_problem(case, dt)):
-        problems.append(problem)
-        lines.append(f"PROBLEM: {problem} (run will refuse this case)")
+    if disc is not None:
+        h_over_c = float(np.min(disc.node_length /
+                                disc.material_table[disc.node_material, CP]))
+        dt = case.run.cfl * h_over_c
+        steps = math.ceil(case.run.end_time / dt)
+        lines.append(f"time step: {dt:.4e} s (cfl {case.run.cfl}) at the start; about {steps} "
+                     f"steps to {case.run.end_time:.4e} s ({2 * steps} Runge-Kutta stages)")
+        if (problem := step_count_problem(case, dt)):
+            problems.append(problem)
+            lines.append(f"PROBLEM: {problem} (run will refuse this case)")
+        memory = estimate_case(case, expected_steps(case, dt))
+    else:
+        lines.append("time step: not computed (the case does not fit in the memory available)")
+        memory = estimate_case(case)
     lines.append(f"scheme: {case.run.method}, order {case.run.order}, limiter "
                  f"{case.run.limiter}")
-    memory = estimate_case(case, expected_steps(case, dt))
-    available = available_bytes()
-    lines.append(f"memory: {memory.describe()}, of "
-                 f"{format_bytes(available) + ' available' if available is not None else 'an unknown amount available'}")
+    shown = f"{format_bytes(available)} available" if available is not None else \
+        "an unknown amount available"
+    lines.append(f"memory: {memory.describe()}, of {shown}")
     if (problem := memory_problem(memory, available)):
         problem = f"the run {problem}"
         problems.append(problem)
