@@ -194,91 +194,336 @@ def test_mesh_checks_name_the_problem():
 
 
 # ------------------------------------------------------------------ fuzzed input
+#
+# The fuzzers change one thing at a time in a small valid case (two bars about to meet,
+# rollers on their sides, 10 steps at most), mostly to values that make a valid case, so that
+# most examples reach the solver; a run must then be physically sane (finite fields, total
+# energy not rising where no boundary does work, no inverted triangle), a refused case must
+# be refused with one line naming the case, and nothing else may come out.
 
-BASE = two_bars(divisions=(6, 2), end_time=2e-7)
-VALUES = st.sampled_from([None, 0, -1, 1, 2, 0.5, 1e300, -1e-300, math.nan, math.inf, "x",
-                          "sin(x)", "", [], [1.0], [1.0, 2.0], [1.0, 2.0, 3.0], {},
-                          {"x": 1.0}, True, "copper", "left", "slip", "rectangle"])
+import collections
+
+BASE = two_bars(divisions=(6, 2), end_time=1e-6, gap=2e-5, max_steps=10)
+
+LOG = lambda lo, hi: st.floats(math.log10(lo), math.log10(hi)).map(lambda e: 10.0 ** e)
+SPEED = st.floats(-300.0, 300.0)
+NAMES = ["left", "right"]
+REGIONS = ["xmin", "xmax", "ymin", "ymax"]
+INVALID = st.sampled_from([None, 0, -1, 1e300, -1e-300, math.nan, math.inf, "x", "", [],
+                           [1.0], [1.0, 2.0, 3.0], {}, {"x": 1.0}, True, "copper", "rectangle"])
 
 
-def _paths(obj, prefix=()):
-    yield prefix
-    if isinstance(obj, dict):
-        for k, v in obj.items():
-            yield from _paths(v, prefix + (k,))
-    elif isinstance(obj, list):
-        for i, v in enumerate(obj):
-            yield from _paths(v, prefix + (i,))
+@st.composite
+def expressions(draw, depth=3):
+    """Expressions of x and y the case schema accepts (docs/case-file.md)."""
+    leaves = st.one_of(st.sampled_from(["x", "y", "pi", "e"]),
+                       st.floats(-1e3, 1e3, allow_nan=False).map(lambda v: f"{v:.6g}"))
+    if depth == 0 or draw(st.integers(0, 3)) == 0:
+        return draw(leaves)
+    kind = draw(st.sampled_from(["unary", "binary", "call1", "call2"]))
+    a = draw(expressions(depth - 1))
+    if kind == "unary":
+        return f"{draw(st.sampled_from(['-', '+']))}({a})"
+    b = draw(expressions(depth - 1))
+    if kind == "binary":
+        return f"({a}) {draw(st.sampled_from(['+', '-', '*', '/', '**']))} ({b})"
+    if kind == "call1":
+        name = draw(st.sampled_from(["sin", "cos", "tan", "exp", "log", "sqrt", "abs", "tanh",
+                                     "sinh", "cosh", "arcsin", "arccos", "arctan",
+                                     "heaviside"]))
+        return f"{name}({a})"
+    return f"{draw(st.sampled_from(['arctan2', 'minimum', 'maximum']))}({a}, {b})"
 
 
-PATHS = [p for p in _paths(BASE) if p]
+# a velocity expression of bounded size most of the time, raw otherwise
+VELOCITY_EXPRESSION = st.one_of(
+    expressions().map(lambda text: f"100*tanh({text})"),
+    expressions().map(lambda text: f"100*sin(3000*x) + 0*({text})"),
+    expressions())
 
 
-@settings(max_examples=120, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-@given(st.lists(st.tuples(st.sampled_from(PATHS), VALUES, st.booleans()), min_size=1,
-                max_size=3))
-def test_fuzzed_cases_give_a_run_or_an_input_error(mutations):
-    case = copy.deepcopy(BASE)
-    for path, value, delete in mutations:
-        parent = case
-        try:
-            for key in path[:-1]:
-                parent = parent[key]
-            if delete and isinstance(parent, dict):
-                parent.pop(path[-1], None)
-            else:
-                parent[path[-1]] = value
-        except (KeyError, IndexError, TypeError):
-            continue
+def _set(case, path, value):
+    parent = case
+    for key in path[:-1]:
+        parent = parent[key]
+    parent[path[-1]] = value
+
+
+@st.composite
+def one_mutation(draw):
+    """(description, function changing the case) of a single change, usually valid."""
+    b = draw(st.integers(0, 1))
+    choices = {
+        "run.end_time": lambda: ("run", "end_time", draw(LOG(1e-8, 1e-5))),
+        "run.cfl": lambda: ("run", "cfl", draw(st.floats(0.01, 1.0))),
+        "run.output_interval": lambda: ("run", "output_interval", draw(LOG(1e-8, 1e-5))),
+        "run.order": lambda: ("run", "order", draw(st.sampled_from([1, 2]))),
+        "run.limiter": lambda: ("run", "limiter", draw(st.sampled_from(
+            ["none", "barth_jespersen", "venkatakrishnan"]))),
+        "run.geometric_flux": lambda: ("run", "geometric_flux", draw(st.sampled_from(
+            ["central", "upwind"]))),
+        "run.method": lambda: ("run", "method", draw(st.sampled_from(
+            ["fv", "fem-t3", "fem-q4md"]))),
+        "run.max_steps": lambda: ("run", "max_steps", draw(st.integers(1, 10))),
+        "material.density": lambda: ("material", 0, "density", draw(LOG(1e2, 1e5))),
+        "material.youngs_modulus": lambda: ("material", 0, "youngs_modulus",
+                                            draw(LOG(1e6, 1e12))),
+        "material.poisson_ratio": lambda: ("material", 0, "poisson_ratio",
+                                           draw(st.floats(-0.9, 0.499))),
+        "material.model": lambda: ("material", 0, "model", draw(st.sampled_from(
+            ["neo_hookean", "linear_elastic"]))),
+        "body.velocity": lambda: ("body", b, "velocity", [draw(SPEED), draw(SPEED)]),
+        "body.velocity expression": lambda: ("body", b, "velocity",
+                                             [draw(VELOCITY_EXPRESSION), "0"]),
+        "body.mesh.divisions": lambda: ("body", b, "mesh", "divisions",
+                                        [draw(st.integers(1, 10)), draw(st.integers(1, 4))]),
+        "body.mesh.pattern": lambda: ("body", b, "mesh", "pattern", draw(st.sampled_from(
+            ["right", "left", "alternate", "crossed"]))),
+        "body.mesh.size": lambda: ("body", b, "mesh", "size", [draw(LOG(2e-3, 1e-2)),
+                                                              draw(LOG(2e-4, 2e-3))]),
+        "body.boundary.velocity": lambda: ("body", b, "boundary", draw(st.integers(0, 1)),
+                                           "velocity", draw(st.sampled_from(
+                                               [{"x": 0.0}, {"y": 0.0}, {"x": 0.0, "y": 0.0},
+                                                {"y": draw(SPEED)}]))),
+        "body.boundary.region": lambda: ("body", b, "boundary", draw(st.integers(0, 1)),
+                                         "region", draw(st.sampled_from(REGIONS))),
+        "body.boundary": lambda: ("body", b, "boundary", draw(st.sampled_from(
+            [[], [{"region": "xmin", "traction": [draw(st.floats(-1e6, 1e6)), 0.0]}],
+             [{"region": draw(st.sampled_from(REGIONS)), "velocity": {"x": 0.0, "y": 0.0}}]]))),
+        "contact.model": lambda: ("contact", 0, "model", draw(st.sampled_from(
+            ["stick", "slip"]))),
+        "contact.bodies": lambda: ("contact", 0, "bodies", draw(st.permutations(NAMES))),
+        "contact.regions": lambda: ("contact", 0, "regions", draw(st.lists(
+            st.sampled_from(REGIONS), min_size=1, max_size=2, unique=True))),
+        "contact": lambda: ("contact", draw(st.sampled_from(
+            [[], [{"bodies": ["right"], "wall": {"point": [0.0103, 0.0],
+                                                 "normal": [-1.0, draw(st.floats(-0.2, 0.2))]}},
+                  {"bodies": NAMES}]]))),
+    }
+    name = draw(st.sampled_from(sorted(choices)))
+    *path, value = choices[name]()
+    if draw(st.sampled_from(["valid"] * 9 + ["invalid"])) == "invalid":   # now and then
+        value = draw(INVALID)
+        name += " (invalid)"
+    return name, tuple(path), value
+
+
+def _no_external_work(case):
+    """No boundary of the case can put energy in: prescribed velocities and walls at rest,
+    no traction."""
+    for body in case.spec.body:
+        for bc in body.boundary:
+            if bc.traction is not None and any(bc.traction):
+                return False
+            if bc.velocity is not None and any(bc.velocity.components(2)):
+                return False
+    return all(c.wall is None or not any(c.wall.velocity) for c in case.spec.contact)
+
+
+def _signed_areas(points, cells):
+    """Signed area of every cell (shoelace; triangles and quadrilaterals)."""
+    p = points[cells]
+    x, y = p[..., 0], p[..., 1]
+    return 0.5 * np.sum(x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y, axis=1)
+
+
+def check_case_outcome(data, sources=("<dict>: ",), strict_energy=True) -> str:
+    """Load and run ``data``; assert what may come out. Returns 'ran', 'failed' (the solver
+    stopped with a SimulationError) or 'refused' (InputError: one line that starts with one
+    of ``sources``, the case or a mesh file). ``strict_energy``: the total energy may not
+    rise in any step (else: it may not end more than 5% above its start; see the known
+    limitation of order 2 on meshes of a few poorly shaped triangles, docs/theory.md)."""
     try:
-        result = run(load_case(case))
-    except (InputError, SimulationError):
-        return
+        case = load_case(data)
+    except InputError as exc:
+        assert "\n" not in str(exc) and str(exc).startswith(sources), str(exc)
+        return "refused"
+    try:
+        result = run(case)
+    except InputError as exc:                    # overlapping bodies, too many steps
+        assert "\n" not in str(exc) and "<dict>" in str(exc), str(exc)
+        return "refused"
+    except SimulationError as exc:
+        assert exc.step is not None and exc.time is not None, str(exc)
+        return "failed"
     assert result.summary["status"] in ("completed", "stopped at max_steps")
+    assert result.summary["steps"] <= 10
+    for name, body in result.bodies.items():
+        for key, value in body.items():
+            if np.asarray(value).dtype.kind == "f":
+                assert np.all(np.isfinite(value)), (name, key)
+        cells = body.get("cells", body["triangles"])
+        assert np.all(_signed_areas(body["points"], cells) > 0), f"inverted cell in {name}"
+    energy = result.history["total_energy"]
+    assert np.all(np.isfinite(energy))
+    if case.run.method == "fv" and _no_external_work(case):
+        # the upwind scheme and its contact dissipate: the energy never rises beyond round-off
+        if strict_energy or case.run.order == 1:
+            assert np.all(np.diff(energy) <= 1e-9 * energy[0] + 1e-300), np.diff(energy).max()
+        else:
+            assert energy[-1] <= 1.05 * energy[0], (energy[0], energy[-1])
+    return "ran"
 
 
-@settings(max_examples=60, deadline=None)
-@given(st.one_of(st.text(max_size=40), st.sampled_from(["x\x00", "(" * 300 + "x" + ")" * 300,
-                                                         "1" * 400, "x**9e9", "1/0", "sin()"])))
-def test_fuzzed_expressions_never_escape(text):
-    case = copy.deepcopy(BASE)
-    case["body"][0]["velocity"] = [text, "0"]
-    case["run"]["end_time"] = 1e-9
-    try:
-        run(load_case(case))
-    except (InputError, SimulationError):
-        pass
+@pytest.fixture
+def one_thread():
+    """Tiny meshes: numba's thread pool costs more than it gives (20 s instead of 2 s for
+    the case fuzzer on two cores, 150 s on a loaded machine); results do not depend on the
+    thread count (tests/test_regression.py)."""
+    import numba
+
+    before = numba.get_num_threads()
+    numba.set_num_threads(1)
+    yield
+    numba.set_num_threads(before)
+
+
+def _fuzz_report(name, outcomes):
+    total = sum(outcomes.values())
+    print(f"\n{name}: {dict(outcomes)}; reached the solver: "
+          f"{outcomes['ran'] + outcomes['failed']} of {total}")
+    return total
+
+
+def test_fuzzed_cases_reach_the_solver_and_stay_physical(one_thread):
+    outcomes = collections.Counter()
+
+    @settings(max_examples=150, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(one_mutation())
+    def fuzz(mutation):
+        name, path, value = mutation
+        case = copy.deepcopy(BASE)
+        _set(case, path, value)
+        if path[:2] != ("run", "max_steps"):
+            case["run"]["max_steps"] = 10
+        outcomes[check_case_outcome(case)] += 1
+
+    fuzz()
+    total = _fuzz_report("case mutations", outcomes)
+    assert outcomes["ran"] >= 0.6 * total, outcomes        # the fuzzer tests the solver
+    assert outcomes["refused"] >= 1                          # and the parser
+
+
+def test_fuzzed_expressions_reach_the_solver_and_stay_physical(one_thread):
+    outcomes = collections.Counter()
+    odd = st.one_of(st.text(max_size=40), st.sampled_from(
+        ["x\x00", "(" * 300 + "x" + ")" * 300, "1" * 400, "x**9e9", "1/0", "sin()"]))
+
+    @settings(max_examples=80, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(st.one_of(VELOCITY_EXPRESSION, VELOCITY_EXPRESSION, VELOCITY_EXPRESSION, odd),
+           st.sampled_from([0, 1]))
+    def fuzz(text, component):
+        case = copy.deepcopy(BASE)
+        velocity = [50.0, 0.0]
+        velocity[component] = text
+        case["body"][0]["velocity"] = velocity
+        outcomes[check_case_outcome(case)] += 1
+
+    fuzz()
+    total = _fuzz_report("velocity expressions", outcomes)
+    assert outcomes["ran"] >= 0.5 * total, outcomes
+    assert outcomes["refused"] >= 1
 
 
 COORD = st.one_of(st.floats(-1e-3, 1e-3), st.sampled_from([math.nan, math.inf, 0.0, 1e-3]))
+DEFECTS = [None] * 9 + ["duplicate node", "unused node", "clockwise", "repeated triangle",
+                        "degenerate", "fold", "nan point"]
 
 
-@settings(max_examples=40, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-@given(st.lists(st.tuples(COORD, COORD), min_size=0, max_size=9),
-       st.lists(st.tuples(st.integers(-1, 9), st.integers(-1, 9), st.integers(-1, 9)),
-                min_size=0, max_size=8))
-def test_fuzzed_mesh_files_give_a_run_or_an_input_error(tmp_path_factory, points, triangles):
-    folder = tmp_path_factory.mktemp("mesh")
-    pts = np.array(points, float).reshape(-1, 2)
-    tri = np.array(triangles, int).reshape(-1, 3)
-    try:
-        meshio.write(folder / "m.msh", meshio.Mesh(np.column_stack([pts, np.zeros(len(pts))]),
-                                                   [("triangle", tri)]),
-                     file_format="gmsh22", binary=False)
-    except Exception:
-        (folder / "m.msh").write_text("$MeshFormat\nnot a mesh\n")
-    case = {"run": {"end_time": 1e-8},
+@st.composite
+def mesh_files(draw):
+    """(points, triangles): a jittered grid of triangles, now and then with one defect, or
+    (a quarter of the time) arbitrary points and triangles."""
+    rnd = draw(st.randoms(use_true_random=True))     # uniform choices of the kind of mesh
+    if rnd.random() < 0.25:
+        pts = np.array(draw(st.lists(st.tuples(COORD, COORD), max_size=9)), float)
+        tri = np.array(draw(st.lists(st.tuples(*[st.integers(-1, 9)] * 3), max_size=8)), int)
+        return pts.reshape(-1, 2), tri.reshape(-1, 3), "arbitrary"
+    from impactfv.mesh.generators import rectangle
+
+    nx, ny = draw(st.integers(1, 6)), draw(st.integers(1, 4))
+    h = 1e-3
+    mesh = rectangle((0.0, 0.0), (nx * h, ny * h), (nx, ny),
+                     draw(st.sampled_from(["right", "left", "alternate", "crossed"])))
+    pts, tri = mesh.points.copy(), mesh.cells.copy()
+    inside = (pts[:, 0] > 0) & (pts[:, 0] < nx * h) & (pts[:, 1] > 0) & (pts[:, 1] < ny * h)
+    jitter = draw(st.floats(0.0, 0.3)) * h
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    pts[inside] += rng.uniform(-jitter, jitter, (int(inside.sum()), 2))
+    defect = rnd.choice(DEFECTS)
+    k = rnd.randrange(len(tri))
+    if defect == "duplicate node":
+        pts = np.vstack([pts, pts[tri[k, 0]]])
+        tri[k, 0] = len(pts) - 1
+    elif defect == "unused node":
+        pts = np.vstack([pts, [2 * nx * h, 0.0]])
+    elif defect == "clockwise":                  # accepted and turned counter-clockwise
+        tri[k] = tri[k, ::-1]
+    elif defect == "repeated triangle":
+        tri = np.vstack([tri, tri[k]])
+    elif defect == "degenerate":
+        tri[k, 2] = tri[k, 1]
+    elif defect == "fold":                       # a node pushed across its neighbours
+        pts[tri[k, 0]] = pts[tri[k, 1]] + 1.5 * (pts[tri[k, 1]] - pts[tri[k, 0]])
+    elif defect == "nan point":
+        pts[tri[k, 0], 0] = math.nan
+    return pts, tri, defect or "valid"
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_a_dart_of_two_triangles_keeps_its_energy_bounded(tmp_path, order):
+    """The example the mesh fuzzer found: a non-convex body of two triangles. Order 1
+    dissipates in every step; order 2 lets the energy rise in some steps (docs/theory.md,
+    known limitations) but not grow."""
+    pts = np.array([[0.0025, 0.0025], [0.001, 0.0], [0.0, 0.001], [0.001, 0.001]])
+    meshio.write(tmp_path / "dart.vtu", meshio.Mesh(pts, [("triangle", np.array(
+        [[0, 1, 3], [0, 3, 2]]))]))
+    case = {"run": {"end_time": 1e-4, "max_steps": 60, "order": order},
             "material": [{"name": "m", "density": 1000.0, "youngs_modulus": 1e6,
                           "poisson_ratio": 0.3}],
-            "body": [{"name": "b", "material": "m", "velocity": [1.0, 0.0],
-                      "mesh": {"file": "m.msh"}}]}
-    try:
-        result = run(load_case(case, base_dir=folder))
-    except (InputError, SimulationError):
-        return
-    assert result.summary["status"] == "completed"
+            "body": [{"name": "b", "material": "m", "velocity": ["100*sin(3000*x)", "0"],
+                      "mesh": {"file": str(tmp_path / "dart.vtu")}}]}
+    energy = run(load_case(case)).history["total_energy"]
+    if order == 1:
+        assert np.all(np.diff(energy) <= 0.0)
+    else:
+        assert np.diff(energy).max() > 1e-3 * energy[0]        # the limitation, measured
+        assert energy.max() <= 1.05 * energy[0] and energy[-1] < energy[0]
+
+
+def test_fuzzed_mesh_files_reach_the_solver_and_stay_physical(tmp_path_factory, one_thread):
+    outcomes, kinds = collections.Counter(), collections.Counter()
+    folder = tmp_path_factory.mktemp("mesh")
+
+    @settings(max_examples=60, deadline=None, database=None, derandomize=True,
+              suppress_health_check=[HealthCheck.too_slow])
+    @given(mesh_files(), st.sampled_from([1, 2]))
+    def fuzz(mesh, order):
+        pts, tri, kind = mesh
+        try:
+            meshio.write(folder / "m.msh", meshio.Mesh(
+                np.column_stack([pts, np.zeros(len(pts))]), [("triangle", tri)]),
+                file_format="gmsh22", binary=False)
+        except Exception:
+            (folder / "m.msh").write_text("$MeshFormat\nnot a mesh\n")
+        case = {"run": {"end_time": 1e-6, "max_steps": 10, "order": order},
+                "material": [{"name": "m", "density": 1000.0, "youngs_modulus": 1e6,
+                              "poisson_ratio": 0.3}],
+                "body": [{"name": "b", "material": "m", "velocity": ["100*sin(3000*x)", "0"],
+                          "mesh": {"file": str(folder / "m.msh")}}]}
+        outcome = check_case_outcome(case, ("<dict>: ", f"{folder / 'm.msh'}: "),
+                                     strict_energy=False)
+        if kind == "valid" or kind == "clockwise":
+            assert outcome != "refused", kind
+        outcomes[outcome] += 1
+        kinds[kind, outcome] += 1
+
+    fuzz()
+    total = _fuzz_report("mesh files", outcomes)
+    print(dict(kinds))
+    assert outcomes["ran"] >= 0.3 * total and outcomes["refused"] >= 1, outcomes
 
 
 def test_checkpoint_and_output_intervals_too_small_are_refused(tmp_path):

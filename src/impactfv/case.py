@@ -368,6 +368,7 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
         raise InputError(_one_line(exc, name, overridden)) from None
     case = Case(spec, base, name)
     _check_names(spec, name)
+    _refuse_meshes_too_large(spec, name)
     dim = None
     for i, b in enumerate(spec.body):
         mesh = _build_mesh(b.mesh, base, f"{name}: body[{i}].mesh")
@@ -454,6 +455,28 @@ def _refuse_booleans(data, source: str, path: str = ""):
             raise InputError(f"{source}: {where}: expected a number or text, got "
                              f"{str(value).lower()} (no setting takes a boolean)")
         _refuse_booleans(value, source, where)
+
+
+def _refuse_meshes_too_large(spec: CaseSpec, source: str):
+    """Generated meshes whose run cannot fit in the memory available are refused before
+    they are built (their sizes follow from divisions or rings)."""
+    from .memory import counts_of_generator, estimate, memory_problem
+
+    in_contact = {name for c in spec.contact for name in c.bodies}
+    counts = [(i, counts_of_generator(b.mesh, b.name in in_contact))
+              for i, b in enumerate(spec.body)]
+    known = [(i, c) for i, c in counts if c is not None]
+    if not known:
+        return
+    problem = memory_problem(estimate([c for _, c in known], spec.run.order,
+                                      spec.run.geometric_flux == "upwind", len(spec.contact)))
+    if problem:
+        i, largest = max(known, key=lambda item: item[1].nodes)
+        mesh = spec.body[i].mesh
+        key, value = ("divisions", list(mesh.divisions)) if mesh.generator == "rectangle" \
+            else ("rings", mesh.rings)
+        raise InputError(f"{source}: body[{i}].mesh.{key}: {value} makes "
+                         f"{largest.nodes:,} nodes; the run {problem}")
 
 
 def _check_names(spec: CaseSpec, source: str):

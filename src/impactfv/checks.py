@@ -10,22 +10,22 @@ from .case import Case
 from .materials import CP
 from .scheme.discretisation import discretise
 
-# float64 work arrays per node the FV stepper allocates beyond the discretisation
-# (scheme.stepper.FVStepper): v, F, x, their stage copies, P, grad, vmin, vmax, phi, force, dF
-def _stepper_doubles_per_node(d):
-    return 2 * (d + d * d + d) + d * d + d * d + 3 * d + d + d * d
-
-
 def check_report(case: Case) -> str:
     return check_case(case)[0]
 
 
 def check_case(case: Case) -> tuple[str, list[str]]:
     """The report of ``impactfv check`` and the problems in it that ``run`` would refuse."""
-    from .pipeline.run import step_count_problem
+    from .memory import available_bytes, estimate_case, format_bytes, memory_problem
+    from .pipeline.run import expected_steps, step_count_problem
 
     problems = []
-    disc = discretise(case)
+    available = available_bytes()
+    if (problem := memory_problem(estimate_case(case), available)):
+        # the scheme's arrays would not fit: report the meshes and the memory only
+        disc = None
+    else:
+        disc = discretise(case)
     lines = [f"case: {case.source}" + (f"  ({case.title})" if case.title else "")]
     for body in case.bodies:
         q = body.mesh.quality()
@@ -51,21 +51,29 @@ def check_case(case: Case) -> tuple[str, list[str]]:
         lines.append(f"  boundary regions: {regions or 'none'}")
         for name, why in sorted(body.mesh.skipped_sets.items()):
             lines.append(f"  named set {name!r} is no region: {why}")
-    h_over_c = float(np.min(disc.node_length / disc.material_table[disc.node_material, CP]))
-    dt = case.run.cfl * h_over_c
-    steps = math.ceil(case.run.end_time / dt)
-    nbytes = sum(a.nbytes for a in vars(disc).values() if isinstance(a, np.ndarray))
-    nbytes += 8 * _stepper_doubles_per_node(disc.dim) * disc.n_nodes
-    lines.append(f"time step: {dt:.4e} s (cfl {case.run.cfl}) at the start; about {steps} steps "
-                 f"to {case.run.end_time:.4e} s ({2 * steps} Runge-Kutta stages)")
-    if (problem := step_count_problem(case, dt)):
-        problems.append(problem)
-        lines.append(f"PROBLEM: {problem} (run will refuse this case)")
+    if disc is not None:
+        h_over_c = float(np.min(disc.node_length /
+                                disc.material_table[disc.node_material, CP]))
+        dt = case.run.cfl * h_over_c
+        steps = math.ceil(case.run.end_time / dt)
+        lines.append(f"time step: {dt:.4e} s (cfl {case.run.cfl}) at the start; about {steps} "
+                     f"steps to {case.run.end_time:.4e} s ({2 * steps} Runge-Kutta stages)")
+        if (problem := step_count_problem(case, dt)):
+            problems.append(problem)
+            lines.append(f"PROBLEM: {problem} (run will refuse this case)")
+        memory = estimate_case(case, expected_steps(case, dt))
+    else:
+        lines.append("time step: not computed (the case does not fit in the memory available)")
+        memory = estimate_case(case)
     lines.append(f"scheme: {case.run.method}, order {case.run.order}, limiter "
                  f"{case.run.limiter}")
-    lines.append(f"memory: about {nbytes / 2**20:.1f} MiB for the state and work arrays "
-                 f"({nbytes / disc.n_nodes:.0f} bytes per node, {disc.n_nodes} nodes, "
-                 f"{disc.n_edges} edges)")
+    shown = f"{format_bytes(available)} available" if available is not None else \
+        "an unknown amount available"
+    lines.append(f"memory: {memory.describe()}, of {shown}")
+    if (problem := memory_problem(memory, available)):
+        problem = f"the run {problem}"
+        problems.append(problem)
+        lines.append(f"PROBLEM: {problem} (run will refuse this case)")
     if case.contacts:
         from .geometry.penetration import find_overlaps
         for k, c in enumerate(case.contacts):

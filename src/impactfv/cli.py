@@ -2,6 +2,10 @@
 
 Exit codes: 0 success, 2 input error (one line, no traceback), 3 failed simulation,
 130/143 interrupted, 141 the output pipe was closed by its reader.
+
+Only the standard library and the light modules below are imported here: the signal
+handlers are installed first thing in :func:`main`, before numpy, numba and the case schema
+load (a Ctrl-C at any moment gives exit 130 and one line, never a traceback).
 """
 
 from __future__ import annotations
@@ -11,9 +15,9 @@ import os
 import sys
 from pathlib import Path
 
+from . import interrupts
 from .version import __version__
-from .errors import InputError, SimulationError, printable
-from .pipeline import Interrupted
+from .errors import InputError, Interrupted, SimulationError, printable
 
 
 DESCRIPTION = ("Transient large-strain solid dynamics with contact by an upwind "
@@ -86,6 +90,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
+    interrupts.install()
     parser = _parser()
     args = parser.parse_args(argv)
     try:
@@ -121,6 +126,13 @@ def main(argv=None) -> int:
     except Interrupted as exc:
         print(f"impactfv: {printable(exc)}; continue with --restart", file=sys.stderr)
         return 128 + int(exc.signum)
+    except MemoryError:
+        if args.debug:
+            raise
+        print("impactfv: error: out of memory: the case needs more memory than this machine "
+              "has available (impactfv check case.toml reports the estimate); use a coarser "
+              "mesh", file=sys.stderr)
+        return 2
     return 0
 
 

@@ -20,3 +20,12 @@ def printable(text) -> str:
     """``text`` with control characters (newlines, terminal escape codes) shown as escapes,
     so that a file name or title can never break a one-line message or the terminal."""
     return "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in str(text))
+
+
+class Interrupted(Exception):
+    """The run was stopped by a signal after writing a checkpoint; CLI exit 128 + signum."""
+
+    def __init__(self, signum, checkpoint):
+        super().__init__(f"interrupted by signal {signum}; checkpoint written to {checkpoint}")
+        self.signum = signum
+        self.checkpoint = checkpoint

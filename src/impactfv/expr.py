@@ -55,6 +55,8 @@ def compile_expression(text: str, key: str, variables=_VARIABLES):
         try:
             with np.errstate(all="ignore"):
                 value = _eval(tree.body, dict(zip(variables, coordinates)))
+            if np.iscomplexobj(value):
+                raise ValueError("complex values")
             return np.broadcast_to(np.asarray(value, dtype=float),
                                    np.shape(coordinates[0])).copy()
         except (TypeError, ValueError, ArithmeticError) as exc:
@@ -93,7 +95,10 @@ def _check(node, key, text, variables):
 
 def _eval(node, variables):
     if isinstance(node, ast.Constant):
-        return float(node.value)
+        # numpy semantics from the first number on: (-8) ** (1/3) is NaN (refused as a
+        # non-finite value), not the complex number of Python floats, whose real part
+        # would silently become the velocity
+        return np.float64(node.value)
     if isinstance(node, ast.Name):
         return variables[node.id] if node.id in variables else _CONSTANTS[node.id]
     if isinstance(node, ast.BinOp):

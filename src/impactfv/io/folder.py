@@ -6,12 +6,14 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from .. import interrupts
 from ..errors import InputError
 
 LOCK_NAME = ".impactfv.lock"
 # what a run writes; a fresh run removes these (and only these) from an earlier run
 OUTPUT_PATTERNS = ("fields_*.vtu", "fields.pvd", "walls_*.vtu", "walls.pvd", "history.csv",
-                   "summary.json", "checkpoints/checkpoint_*.npz", "plots/*.png")
+                   "summary.json", "checkpoints/checkpoint_*.npz",
+                   "checkpoints/checkpoint_*.npz.unreadable", "plots/*.png")
 
 
 def _alive(pid: int) -> bool:
@@ -54,6 +56,7 @@ class OutputFolder:
                                      "with -o") from None
                 self.lock.unlink(missing_ok=True)     # stale: its process is gone
                 continue
+            interrupts.remove_on_exit(self.lock)   # a signal before the loop ends at once
             with os.fdopen(fd, "w") as fh:
                 fh.write(f"{os.getpid()}\n")
             self.held = True
@@ -71,5 +74,6 @@ class OutputFolder:
     def __exit__(self, *exc):
         if self.held:
             self.lock.unlink(missing_ok=True)
+            interrupts.keep_on_exit(self.lock)
             self.held = False
         return False

@@ -53,8 +53,24 @@ def write_history_csv(path, history: dict[str, np.ndarray], n_rows: int):
     atomic_write_text(path, buf.getvalue())
 
 
+def json_safe(value):
+    """``value`` with every NaN or infinity replaced by None (JSON has no such numbers: a
+    reader would choke on ``NaN``) and numpy scalars turned into Python numbers."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_safe(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
 def write_summary(path, summary: dict):
-    atomic_write_text(path, json.dumps(summary, indent=2, sort_keys=False) + "\n")
+    """summary.json: strict JSON, non-finite numbers written as null."""
+    text = json.dumps(json_safe(summary), indent=2, sort_keys=False, allow_nan=False)
+    atomic_write_text(path, text + "\n")
 
 
 def _three_components(value, dim):
@@ -163,6 +179,10 @@ class SnapshotWriter:
         if self.walls:
             self._write_walls(time, dim, len(self.entries))
         self.entries.append((time, name))
+        self.write_collection()
+
+    def write_collection(self):
+        """Write `<stem>.pvd` (and `walls.pvd`) listing the current entries."""
         _write_pvd(self.folder / f"{self.stem}.pvd", self.entries)
         if self.walls:
             _write_pvd(self.folder / "walls.pvd",

@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import Interrupted  # noqa: F401  (defined with the other exit codes)
+
 
 @dataclass
 class RunResult:
@@ -18,12 +20,3 @@ class RunResult:
     summary: dict
     output_dir: Path | None = None
     snapshots: list = field(default_factory=list)
-
-
-class Interrupted(Exception):
-    """The run was stopped by a signal after writing a checkpoint; CLI exit 128 + signum."""
-
-    def __init__(self, signum, checkpoint):
-        super().__init__(f"interrupted by signal {signum}; checkpoint written to {checkpoint}")
-        self.signum = signum
-        self.checkpoint = checkpoint

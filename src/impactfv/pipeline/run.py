@@ -14,7 +14,9 @@ A stepper has: ``method``, ``stages_per_step``, ``history_columns()``, ``history
 
 from __future__ import annotations
 
+import json
 import math
+import re
 import time as _time
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,8 +26,11 @@ import numpy as np
 from ..version import __version__
 from ..case import Case
 from ..errors import InputError, SimulationError
-from ..io.checkpoint import case_fingerprint, load_newest_checkpoint, save_checkpoint
+from ..io.checkpoint import (RESTART_MAY_CHANGE, BadCheckpoint, case_description,
+                             case_fingerprint, changed_keys, load_good_checkpoint,
+                             save_checkpoint)
 from ..io.folder import OutputFolder
+from ..memory import estimate_case, memory_problem, resident_bytes
 from ..io.writers import SnapshotWriter, write_history_csv, write_summary
 from .history import History
 from .progress import progress_bar
@@ -36,15 +41,32 @@ from .signals import SignalFlag
 DEFAULT_MAX_STEPS = 10_000_000
 
 
-def step_count_problem(case: Case, dt: float) -> str | None:
+def step_count_problem(case: Case, dt: float, t: float = 0.0, steps_done: int = 0) -> str | None:
     """A message when the run would need more steps than the default cap (estimated from the
-    first stable time step ``dt``) and ``run.max_steps`` was not set; else None."""
-    steps = case.run.end_time / dt if dt > 0 else math.inf
+    stable time step ``dt`` at time ``t``, after ``steps_done`` steps) and ``run.max_steps``
+    was not set; else None."""
+    steps = steps_done + (case.run.end_time - t) / dt if dt > 0 else math.inf
     if case.run.max_steps is None and steps > DEFAULT_MAX_STEPS:
         return (f"run: about {steps:.3g} steps of {dt:.3g} s to end_time = "
                 f"{case.run.end_time:.3g} s (cfl {case.run.cfl}), more than the "
                 f"{DEFAULT_MAX_STEPS:,} allowed unless run.max_steps is set")
     return None
+
+
+def expected_steps(case: Case, dt: float, t: float = 0.0, steps_done: int = 0) -> int:
+    """The steps a run will take (history rows), from the stable time step ``dt``."""
+    cap = case.run.max_steps or DEFAULT_MAX_STEPS
+    remaining = (case.run.end_time - t) / dt if dt > 0 else math.inf
+    return int(min(cap, steps_done + math.ceil(min(remaining, 1e18))))
+
+
+def history_memory_problem(case: Case, dt: float, t: float = 0.0, steps_done: int = 0,
+                           held: int = 0) -> str | None:
+    """The memory check again, now that the number of history rows is known; ``held``:
+    bytes the stepper has already taken since the first check."""
+    problem = memory_problem(estimate_case(case, expected_steps(case, dt, t, steps_done)),
+                             held=held)
+    return f"the run {problem}" if problem else None
 
 
 @dataclass
@@ -77,24 +99,33 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     from ..geometry.penetration import find_overlaps
     from .methods import make_stepper
 
+    if (problem := memory_problem(estimate_case(case))):
+        raise InputError(f"{case.source}: the run {problem}")
     overlaps = find_overlaps(case) if case.contacts else []
     if overlaps:
         raise InputError(f"{case.source}: {overlaps[0]}")
     wall_start = _time.perf_counter()
+    resident = resident_bytes()
     stepper = make_stepper(case)
+    held = resident_bytes() - resident
     output = case.output
     schedule = Schedule(case.run.end_time, case.run.output_interval,
                         case.run.max_steps or DEFAULT_MAX_STEPS, output.history_every,
                         None if output.fields is None else tuple(output.fields))
-    if not restart:
-        problem = step_count_problem(case, stepper.stable_dt())
-        if problem:
-            raise InputError(f"{case.source}: {problem}")
+
+    def refuse(stepper, t, steps):
+        dt = stepper.stable_dt()
+        return step_count_problem(case, dt, t, steps) or \
+            history_memory_problem(case, dt, t, steps, held)
+
+    if not restart and (problem := refuse(stepper, 0.0, 0)):
+        raise InputError(f"{case.source}: {problem}")
     return run_stepper(stepper, schedule, output_dir, progress=progress, restart=restart,
                        checkpoint_every=checkpoint_every, handle_signals=handle_signals,
                        fingerprint=case_fingerprint(case), title=case.title,
                        wall_start=wall_start, walls=case_walls(case),
-                       contacts=case_contacts(case))
+                       contacts=case_contacts(case), description=case_description(case),
+                       preflight=refuse, source=case.source)
 
 
 def case_walls(case) -> list:
@@ -124,12 +155,18 @@ def case_contacts(case) -> list:
 def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | None = None,
                 restart: bool = False, checkpoint_every: float | None = None,
                 handle_signals: bool = False, fingerprint: str = "", title: str | None = None,
-                wall_start: float | None = None, walls=(), contacts=None) -> RunResult:
+                wall_start: float | None = None, walls=(), contacts=None,
+                description: dict | None = None, preflight=None,
+                source: str = "") -> RunResult:
     """Run ``stepper`` to ``schedule.end_time``; see :func:`run` for the options. The output
     folder, if any, is locked for the run (io.folder.OutputFolder). ``walls``: rigid walls
-    drawn in the frames (:func:`case_walls`); ``contacts``: described in the summary."""
+    drawn in the frames (:func:`case_walls`); ``contacts``: described in the summary;
+    ``description``: the case's key table (io.checkpoint.case_description), so that a refused
+    restart can name what changed; ``preflight(stepper, t, steps)``: a reason to refuse a
+    restarted run before it continues, or None."""
     args = (stepper, schedule, output_dir, progress, restart, checkpoint_every, handle_signals,
-            fingerprint, title, wall_start, walls, contacts)
+            fingerprint, title, wall_start, walls, contacts, description or {}, preflight,
+            source)
     if output_dir is None:
         return _run_stepper(*args)
     with OutputFolder(output_dir, fresh=not restart):
@@ -137,7 +174,8 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
 
 
 def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_every,
-                 handle_signals, fingerprint, title, wall_start, walls, contacts) -> RunResult:
+                 handle_signals, fingerprint, title, wall_start, walls, contacts, description,
+                 preflight, source) -> RunResult:
     if (restart or checkpoint_every or handle_signals) and output_dir is None:
         raise InputError("restart and checkpoints need an output folder")
     end = schedule.end_time
@@ -166,6 +204,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         arrays = {"t": np.array(t), "steps": np.array(steps),
                   "next_output": np.array(next_output), "fingerprint": np.array(fingerprint),
                   "version": np.array(__version__), "method": np.array(stepper.method),
+                  "case_description": np.array(json.dumps(description, sort_keys=True)),
+                  "schedule": np.array([end, interval], float),
                   "history_columns": np.array(history.columns),
                   "snapshot_times": np.array([e[0] for e in writer.entries], float),
                   "snapshot_files": np.array([e[1] for e in writer.entries] or [""])}
@@ -176,7 +216,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     if out is not None:
         out.mkdir(parents=True, exist_ok=True)
     if restart:
-        t, steps, next_output = _restart(out, fingerprint, stepper, history, writer)
+        t, steps, next_output = _restart(out, fingerprint, description, stepper, history,
+                                         writer, schedule, preflight, source)
         if history.n and history.data["time"][history.n - 1] == t:
             recorded[0] = steps
     else:
@@ -185,6 +226,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         snapshot(0.0)
         next_output = interval
     next_checkpoint = _next_multiple(t, checkpoint_every) if checkpoint_every else math.inf
+    checkpointed = steps if restart else -1
     bar = progress_bar(progress, end)
     if bar is not None and t > 0:
         bar.update(t)
@@ -211,6 +253,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
                 dt = target - t
             stepper.step(dt)
             last_dt = dt
+            stop.armed()       # the kernels are compiled: a signal now stops after a step
             t = target if abs(t + dt - target) <= 1e-12 * end else t + dt
             steps += 1
             stepper.check(steps, t)
@@ -224,6 +267,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
                     if t < end * (1 - 1e-12) else math.inf
             if t >= next_checkpoint * (1 - 1e-12):
                 checkpoint(t, steps, next_output)
+                checkpointed = steps
                 next_checkpoint = _next_multiple(t, checkpoint_every)
             if bar is not None:
                 bar.update(t - bar.n)
@@ -236,6 +280,9 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             if steps >= schedule.max_steps:
                 status = "stopped at max_steps"
                 break
+        if checkpoint_every and checkpointed != steps:
+            # the end is a checkpoint too: a finished run can be continued to a later end_time
+            checkpoint(t, steps, next_output)
     except SimulationError:
         finish("failed")
         raise
@@ -253,22 +300,121 @@ def _next_multiple(t, interval):
     return (math.floor(t / interval * (1 + 1e-12)) + 1) * interval
 
 
-def _restart(out, fingerprint, stepper, history, writer):
-    path, data = load_newest_checkpoint(out / "checkpoints")
+def _restart(out, fingerprint, description, stepper, history, writer, schedule, preflight,
+             source):
+    """Continue from the newest good checkpoint in ``out/checkpoints``: (t, steps,
+    next_output). A truncated or corrupted newest checkpoint is skipped (with a warning) for
+    the one before it; a checkpoint of another case is refused naming the changed keys."""
+    expected = {k: (a.shape, a.dtype) for k, a in stepper.state_arrays().items()}
+
+    def accept(path, data):
+        try:
+            written_for = str(data["fingerprint"])
+        except (KeyError, ValueError):
+            raise BadCheckpoint("no case fingerprint") from None
+        if written_for != fingerprint:
+            raise InputError(_different_case(path, data, description))
+        problem = checkpoint_problem(data, expected, history.columns)
+        if problem:
+            raise BadCheckpoint(problem)
+
+    path, data = load_good_checkpoint(out / "checkpoints", accept)
+    t, steps = float(data["t"]), int(data["steps"])
+    end, interval = schedule.end_time, schedule.interval
+    where = f"{source}: " if source else ""
+    if t > end * (1 + 1e-12):
+        raise InputError(f"{where}run.end_time: {end:.6g} s is before the time of the "
+                         f"checkpoint {path.name} ({t:.6g} s); set a later end_time to continue")
+    stepper.restore({k[len("state_"):]: a for k, a in data.items() if k.startswith("state_")})
+    if preflight is not None and (problem := preflight(stepper, t, steps)):
+        raise InputError(f"{where}{problem}")
+    history.load({k: data["h_" + k] for k in history.columns})
+    times = data["snapshot_times"]
+    files = [str(f) for f in data["snapshot_files"]][:len(times)]
+    writer.entries = list(zip(map(float, times), files))
+    # frames of the old run after the checkpoint would be mixed with the new ones: the new
+    # run writes them again (under the same names when the schedule is unchanged)
+    for frame in out.glob(f"{writer.stem}_*.vtu"):
+        number = re.fullmatch(rf"{writer.stem}_(\d+)\.vtu", frame.name)
+        if number and int(number.group(1)) >= len(files):
+            frame.unlink(missing_ok=True)
+    writer.write_collection()
+    old_schedule = data["schedule"] if "schedule" in data else None
+    if old_schedule is not None and np.array_equal(old_schedule, [end, interval]):
+        next_output = float(data["next_output"])
+    else:   # end_time or output_interval changed: the next output instant after t
+        next_output = min(_next_multiple(t, interval), end) if t < end * (1 - 1e-12) \
+            else math.inf
+    return t, steps, next_output
+
+
+def _different_case(path, data, description) -> str:
     try:
-        if str(data["fingerprint"]) != fingerprint:
-            raise InputError(f"{path}: checkpoint was written for a different case")
-        if list(data["history_columns"]) != history.columns:
-            raise InputError(f"{path}: checkpoint history columns do not match the case")
-        stepper.restore({k[len("state_"):]: a for k, a in data.items()
-                         if k.startswith("state_")})
-        history.load({k: data["h_" + k] for k in history.columns})
-        times = data["snapshot_times"]
-        files = [str(f) for f in data["snapshot_files"]][:len(times)]
-        writer.entries = list(zip(map(float, times), files))
-        return float(data["t"]), int(data["steps"]), float(data["next_output"])
-    except (KeyError, ValueError) as exc:
-        raise InputError(f"{path}: unreadable checkpoint ({exc})") from None
+        old = json.loads(str(data["case_description"]))
+    except (KeyError, ValueError):
+        old = None
+    allowed = ", ".join(RESTART_MAY_CHANGE)
+    if not isinstance(old, dict) or not (changed := changed_keys(old, description)):
+        return f"{path}: checkpoint was written for a different case"
+    shown = ", ".join(changed[:4]) + (f" and {len(changed) - 4} more" if len(changed) > 4
+                                     else "")
+    return (f"{path}: checkpoint was written for a different case: changed {shown} (a "
+            f"restart may change only {allowed} and --checkpoint-every)")
+
+
+def checkpoint_problem(data, expected, columns) -> str | None:
+    """Why the arrays of a checkpoint cannot be continued from, or None: every array a
+    restart reads must be there with the right shape and type, the time finite and >= 0,
+    the step count >= 0 and one history row per step, the state finite."""
+    def scalar(key, kinds):
+        a = data.get(key)
+        if a is None:
+            return f"{key} is missing"
+        if a.shape != () or a.dtype.kind not in kinds:
+            return f"{key} is not a number"
+        return None
+
+    for key, kinds in (("t", "f"), ("steps", "iu"), ("next_output", "f")):
+        if (problem := scalar(key, kinds)):
+            return problem
+    t, steps, next_output = float(data["t"]), int(data["steps"]), float(data["next_output"])
+    if not (math.isfinite(t) and t >= 0):
+        return f"time t = {t} is not a finite time >= 0"
+    if steps < 0:
+        return f"steps = {steps} is negative"
+    if not next_output > t * (1 - 1e-12):
+        return f"next_output = {next_output} is not after t = {t}"
+    if "history_columns" not in data or [str(c) for c in data["history_columns"]] != columns:
+        return "its history columns do not match the case"
+    for k in columns:
+        h = data.get("h_" + k)
+        if h is None or h.ndim != 1 or h.dtype.kind != "f" or len(h) != steps + 1:
+            return f"history column {k!r} does not have one row per step ({steps + 1})"
+    times = data["h_time"]
+    if not (np.all(np.isfinite(times)) and np.all(np.diff(times) >= 0) and times[-1] == t):
+        return "its history times are not finite, increasing and ending at t"
+    snap_t, snap_f = data.get("snapshot_times"), data.get("snapshot_files")
+    if snap_t is None or snap_f is None or snap_t.ndim != 1 or snap_t.dtype.kind != "f" \
+            or snap_f.ndim != 1 or snap_f.dtype.kind != "U" or len(snap_f) < len(snap_t):
+        return "its list of snapshots is missing or malformed"
+    if not (np.all(np.isfinite(snap_t)) and np.all(np.diff(snap_t) >= 0)
+            and np.all(snap_t <= t * (1 + 1e-12))):
+        return "its snapshot times are not finite, increasing and at most t"
+    if [str(f) for f in snap_f[:len(snap_t)]] != [f"fields_{k:04d}.vtu"
+                                                  for k in range(len(snap_t))]:
+        return "its snapshot file names are not the run's own"
+    for k, (shape, dtype) in expected.items():
+        a = data.get("state_" + k)
+        if a is None:
+            return f"state array {k!r} is missing"
+        if a.shape != shape or a.dtype.kind != dtype.kind:
+            return (f"state array {k!r} has shape {a.shape} ({a.dtype}), the case gives "
+                    f"{shape} ({dtype})")
+        if a.dtype.kind == "f" and np.isnan(a).any():
+            return f"state array {k!r} holds NaN"
+        if k in ("v", "F", "x") and not np.all(np.isfinite(a)):
+            return f"state array {k!r} is not finite"
+    return None
 
 
 def _finish(out, history, stepper, title, steps, t, wall_start, loop_start, status,
