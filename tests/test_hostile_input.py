@@ -670,6 +670,32 @@ def test_memory_estimate_of_check_matches_the_measured_peak(tmp_path, divisions,
     assert 1000 < per_node < 3000                # not the ~530 B/node of the state alone
 
 
+def test_memory_estimate_of_a_3d_run_matches_the_measured_peak(tmp_path):
+    """The same on tetrahedra (a box of 32^3 cells: 35,937 nodes; measured 1.02)."""
+    import subprocess
+    import sys
+
+    def box_case(name, n):
+        path = write_case(tmp_path, name=name, end_time="1e-5", run_extra="max_steps = 2")
+        text = path.read_text().replace(
+            'mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], '
+            'divisions = [8, 2] }',
+            f'mesh = {{ generator = "box", origin = [0.0, 0.0, 0.0], size = [0.01, 0.01, '
+            f'0.01], divisions = [{n}, {n}, {n}] }}')
+        path.write_text(text.replace("velocity = [1.0, 0.0]", "velocity = [1.0, 0.0, 0.0]"))
+        return path
+
+    big, tiny = box_case("big.toml", 32), box_case("tiny.toml", 3)
+    check = run_cli("check", big)
+    assert check.returncode == 0, check.stderr
+    estimate, per_node = _reported_memory(check.stdout)
+    proc = subprocess.run([sys.executable, "-c", MEASURE, str(tiny), str(big)],
+                          capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    measured = json.loads(proc.stdout.strip().splitlines()[-1])["added"]
+    assert 0.7 * measured <= estimate <= 1.3 * measured, (estimate, measured)
+
+
 @pytest.mark.parametrize("mesh,key", [
     ('{ generator = "rectangle", origin = [0.0, 0.0], size = [1.0, 1.0], '
      'divisions = [100000, 100000] }', "body[0].mesh.divisions"),

@@ -188,7 +188,7 @@ def _check_amplitude(table):
 class BodySpec(_Strict):
     name: str = Field(min_length=1)
     material: str
-    velocity: Any = (0.0, 0.0)
+    velocity: Any = None              # at rest unless given
     mesh: MeshSpec
     boundary: list[BoundarySpec] = []
     body_force: Optional[LoadVector] = Field(None, description="acceleration, m/s^2 (seed "
@@ -204,7 +204,7 @@ class BodySpec(_Strict):
     @field_validator("velocity")
     @classmethod
     def _velocity(cls, value):
-        if callable(value):
+        if value is None or callable(value):
             return value
         if isinstance(value, (list, tuple)) and len(value) in (2, 3):
             for item in value:
@@ -382,7 +382,8 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
             if bc.region not in mesh.regions:
                 raise InputError(f"{name}: body[{i}].boundary[{j}].region: "
                                  f"{_unknown_region(bc.region, [mesh])}")
-        velocity = _velocity_function(b.velocity, f"{name}: body[{i}].velocity", dim)
+        velocity = _velocity_function((0.0,) * dim if b.velocity is None else b.velocity,
+                                      f"{name}: body[{i}].velocity", dim)
         case.bodies.append(Body(b, case.materials[b.material], mesh, velocity))
     if dim == 3 and spec.run.method != "fv":
         raise InputError(f"{name}: run.method: the finite element baselines (fem-t3, "
@@ -410,7 +411,7 @@ def _check_length(vector, dim: int, key: str):
 def _check_lengths(body: BodySpec, i: int, dim: int, source: str):
     """Every vector of a body has as many components as its mesh has dimensions, and its
     load expressions are valid."""
-    if not callable(body.velocity):
+    if body.velocity is not None and not callable(body.velocity):
         _check_length(body.velocity, dim, f"{source}: body[{i}].velocity")
     _check_length(body.body_force, dim, f"{source}: body[{i}].body_force")
     names = LOAD_VARIABLES[:dim] + ("t",)
@@ -468,13 +469,15 @@ def _refuse_meshes_too_large(spec: CaseSpec, source: str):
     known = [(i, c) for i, c in counts if c is not None]
     if not known:
         return
+    dim = 3 if any(spec.body[i].mesh.generator == "box" for i, _ in known) else 2
     problem = memory_problem(estimate([c for _, c in known], spec.run.order,
-                                      spec.run.geometric_flux == "upwind", len(spec.contact)))
+                                      spec.run.geometric_flux == "upwind", len(spec.contact),
+                                      dim=dim))
     if problem:
         i, largest = max(known, key=lambda item: item[1].nodes)
         mesh = spec.body[i].mesh
-        key, value = ("divisions", list(mesh.divisions)) if mesh.generator == "rectangle" \
-            else ("rings", mesh.rings)
+        key, value = ("rings", mesh.rings) if mesh.generator == "disc" \
+            else ("divisions", list(mesh.divisions))
         raise InputError(f"{source}: body[{i}].mesh.{key}: {value} makes "
                          f"{largest.nodes:,} nodes; the run {problem}")
 
