@@ -18,7 +18,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from .errors import InputError
 from .expr import compile_expression
 from .materials import Material
-from .mesh.generators import DIAGONAL_PATTERNS, box, disc, rectangle
+from .mesh.generators import DIAGONAL_PATTERNS, annulus, box, disc, rectangle
 from .mesh.reader import read_mesh
 from .mesh.core import Mesh, validate_and_orient
 
@@ -99,13 +99,14 @@ class MaterialSpec(_Strict):
 
 
 class MeshSpec(_Strict):
-    generator: Optional[Literal["rectangle", "disc", "box"]] = None
+    generator: Optional[Literal["rectangle", "disc", "annulus", "box"]] = None
     origin: Optional[Vector] = None
     size: Optional[Vector] = None
     divisions: Optional[Counts] = None
     pattern: str = "alternate"
     centre: Optional[tuple[float, float]] = None
     radius: Optional[float] = Field(None, allow_inf_nan=False)
+    inner_radius: Optional[float] = Field(None, allow_inf_nan=False)
     rings: Optional[int] = None
     file: Optional[str] = None
     scale: float = Field(1.0, gt=0, allow_inf_nan=False,
@@ -114,8 +115,8 @@ class MeshSpec(_Strict):
     @model_validator(mode="after")
     def _one_source(self):
         if (self.generator is None) == (self.file is None):
-            raise ValueError("give either generator = \"rectangle\", \"box\" or \"disc\", "
-                             "or file = \"path\"")
+            raise ValueError("give either generator = \"rectangle\", \"box\", \"disc\" or "
+                             "\"annulus\", or file = \"path\"")
         if self.generator in ("rectangle", "box"):
             d, count = (2, "two") if self.generator == "rectangle" else (3, "three")
             for key in ("origin", "size", "divisions"):
@@ -133,14 +134,18 @@ class MeshSpec(_Strict):
                 raise ValueError(f"divisions must be {count} positive integers")
             if self.pattern not in DIAGONAL_PATTERNS:
                 raise ValueError(f"pattern must be one of {', '.join(DIAGONAL_PATTERNS)}")
-        if self.generator == "disc":
-            for key in ("centre", "radius", "rings"):
+        if self.generator in ("disc", "annulus"):
+            keys = ("centre", "radius", "rings") + (("inner_radius",)
+                                                    if self.generator == "annulus" else ())
+            for key in keys:
                 if getattr(self, key) is None:
-                    raise ValueError(f"disc needs {key}")
+                    raise ValueError(f"{self.generator} needs {key}")
             if self.radius <= 0:
                 raise ValueError("radius must be a positive length")
             if self.rings < 1:
                 raise ValueError("rings must be a positive integer")
+            if self.generator == "annulus" and not 0 < self.inner_radius < self.radius:
+                raise ValueError("inner_radius must be positive and below radius")
         return self
 
 
@@ -239,7 +244,10 @@ class WallSpec(_Strict):
 
 
 class ContactSpec(_Strict):
-    bodies: list[str] = Field(min_length=1, max_length=2)
+    model_config = ConfigDict(extra="forbid", populate_by_name=True)
+
+    bodies: Union[list[str], Literal["all"]] = Field(min_length=1)
+    self_contact: bool = Field(False, alias="self")
     model: Literal["stick", "slip", "coulomb"] = "slip"
     friction: Optional[float] = Field(None, ge=0, allow_inf_nan=False,
                                       description="Coulomb coefficient mu (model coulomb)")
@@ -253,17 +261,28 @@ class ContactSpec(_Strict):
 
     @model_validator(mode="after")
     def _partner(self):
+        if self.bodies == "all" or len(self.bodies) > 2:
+            if self.wall is not None or self.self_contact:
+                raise ValueError("several bodies (or \"all\") pair each with each; a wall "
+                                 "or self-contact takes one body")
+        elif self.self_contact:
+            if len(self.bodies) != 1 or self.wall is not None:
+                raise ValueError("self = true takes exactly one body and no wall")
         if self.model == "coulomb" and self.friction is None:
             raise ValueError("model = \"coulomb\" needs friction = mu (>= 0)")
         if self.model != "coulomb" and self.friction is not None:
             raise ValueError(f"friction is the coefficient of model = \"coulomb\" (model "
                              f"\"{self.model}\" has none)")
+        if self.bodies == "all" or len(self.bodies) > 2 or self.self_contact:
+            return self
         if self.wall is None and len(self.bodies) != 2:
-            raise ValueError("give two bodies, or one body and a wall = { point, normal }")
+            raise ValueError("give two bodies, one body and a wall = { point, normal }, or one "
+                             "body and self = true")
         if self.wall is not None and len(self.bodies) != 1:
             raise ValueError("a wall contact takes exactly one body")
         if len(self.bodies) == 2 and self.bodies[0] == self.bodies[1]:
-            raise ValueError("self-contact of one body is not supported; name two bodies")
+            raise ValueError("name two different bodies (self = true for a body against "
+                             "itself)")
         return self
 
 
@@ -393,13 +412,34 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
             for key in ("point", "normal", "velocity"):
                 _check_length(getattr(c.wall, key), dim, f"{name}: contact[{k}].wall.{key}")
     meshes = {b.name: b.mesh for b in case.bodies}
+    case.contacts = _pairs(spec.contact, [b.name for b in spec.body], name)
     for k, c in enumerate(spec.contact):
-        known = set().union(*(meshes[n].regions for n in c.bodies))
+        names = list(meshes) if c.bodies == "all" else c.bodies
+        known = set().union(*(meshes[n].regions for n in names))
         for region in c.regions or ():
             if region not in known:
                 raise InputError(f"{name}: contact[{k}].regions: "
-                                 f"{_unknown_region(region, [meshes[n] for n in c.bodies])}")
+                                 f"{_unknown_region(region, [meshes[n] for n in names])}")
     return case
+
+
+def _pairs(contacts, body_names, source) -> list:
+    """The contacts of a case, one per pair: an entry of more than two bodies (or "all")
+    stands for every pair of them, in order (a, b), (a, c), (b, c), ...; the history numbers
+    these pairs (contact0, contact1, ...)."""
+    from itertools import combinations
+
+    out = []
+    for k, c in enumerate(contacts):
+        names = body_names if c.bodies == "all" else c.bodies
+        if c.bodies == "all" or len(names) > 2:
+            if len(names) < 2:
+                raise InputError(f"{source}: contact[{k}].bodies: \"all\" needs at least two "
+                                 "bodies")
+            out += [c.model_copy(update={"bodies": list(p)}) for p in combinations(names, 2)]
+        else:
+            out.append(c)
+    return out
 
 
 def _check_length(vector, dim: int, key: str):
@@ -446,15 +486,22 @@ def _unknown_region(region: str, meshes) -> str:
     return f"unknown region {region!r} ({hint}the mesh has: {', '.join(known) or 'none'})"
 
 
+#: the keys that take true/false
+BOOLEAN_KEYS = ("self",)
+
+
 def _refuse_booleans(data, source: str, path: str = ""):
-    """No key of a case takes true/false, and pydantic would read them as 1/0."""
+    """No key of a case but ``contact.self`` takes true/false, and pydantic would read
+    them as 1/0."""
     items = data.items() if isinstance(data, dict) else \
         enumerate(data) if isinstance(data, (list, tuple)) else ()
     for key, value in items:
         where = f"{path}[{key}]" if isinstance(key, int) else f"{path}.{key}" if path else key
         if isinstance(value, bool):
+            if key in BOOLEAN_KEYS and isinstance(data, dict) and path.startswith("contact["):
+                continue
             raise InputError(f"{source}: {where}: expected a number or text, got "
-                             f"{str(value).lower()} (no setting takes a boolean)")
+                             f"{str(value).lower()} (only contact.self takes a boolean)")
         _refuse_booleans(value, source, where)
 
 
@@ -463,7 +510,8 @@ def _refuse_meshes_too_large(spec: CaseSpec, source: str):
     they are built (their sizes follow from divisions or rings)."""
     from .memory import counts_of_generator, estimate, memory_problem
 
-    in_contact = {name for c in spec.contact for name in c.bodies}
+    in_contact = {name for c in spec.contact
+                  for name in ([b.name for b in spec.body] if c.bodies == "all" else c.bodies)}
     counts = [(i, counts_of_generator(b.mesh, b.name in in_contact))
               for i, b in enumerate(spec.body)]
     known = [(i, c) for i, c in counts if c is not None]
@@ -497,7 +545,7 @@ def _check_names(spec: CaseSpec, source: str):
             raise InputError(f"{source}: body[{i}].material: unknown material {b.material!r} "
                              f"(defined: {', '.join(sorted(seen))})")
     for i, c in enumerate(spec.contact):
-        for name in c.bodies:
+        for name in (() if c.bodies == "all" else c.bodies):
             if name not in bodies:
                 raise InputError(f"{source}: contact[{i}].bodies: unknown body {name!r} "
                                  f"(defined: {', '.join(sorted(bodies))})")
@@ -512,6 +560,9 @@ def _build_mesh(spec: MeshSpec, base: Path, key: str) -> Mesh:
         source = key
     elif spec.generator == "disc":
         mesh = disc(spec.centre, spec.radius, spec.rings)
+        source = key
+    elif spec.generator == "annulus":
+        mesh = annulus(spec.centre, spec.radius, spec.inner_radius, spec.rings)
         source = key
     else:
         path = Path(spec.file)

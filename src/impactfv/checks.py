@@ -77,8 +77,10 @@ def check_case(case: Case) -> tuple[str, list[str]]:
     if case.contacts:
         from .geometry.penetration import find_overlaps
         for k, c in enumerate(case.contacts):
-            partner = "a rigid wall" if c.wall is not None else repr(c.bodies[1])
-            lines.append(f"contact[{k}]: {c.bodies[0]!r} with {partner}, model {c.model}")
+            partner = "a rigid wall" if c.wall is not None else "itself" if c.self_contact \
+                else repr(c.bodies[1])
+            law = f"coulomb, friction {c.friction}" if c.model == "coulomb" else c.model
+            lines.append(f"contact[{k}]: {c.bodies[0]!r} with {partner}, model {law}")
         overlaps = find_overlaps(case)
         lines += [f"PROBLEM: {p} (run will refuse this case)" for p in overlaps]
         if not overlaps:

@@ -70,7 +70,7 @@ COLUMNS = ("method", "nodes", "steps", "wall_time_s", "roughness", "peak_pressur
 def method_case(case: Case, method: str, divisions=None) -> Case:
     """A copy of ``case`` run with ``method`` (and, optionally, every rectangle body meshed
     with ``divisions``), with a history row every step (the metrics integrate it)."""
-    data = case.spec.model_dump(exclude_none=True)
+    data = case.spec.model_dump(exclude_none=True, by_alias=True)
     data["run"]["method"] = method
     data.setdefault("output", {})["history_every"] = 1
     for body in data["body"]:

@@ -80,6 +80,11 @@ def counts_of_generator(spec, in_contact=False) -> BodyCounts | None:
     if spec.generator == "disc":
         r = int(spec.rings)
         return BodyCounts(1 + 3 * r * (r + 1), 6 * r * r, 6 * r, in_contact)
+    if spec.generator == "annulus":
+        from .mesh.generators import annulus_segments
+        m = annulus_segments(spec.radius, spec.inner_radius, int(spec.rings))
+        r = int(spec.rings)
+        return BodyCounts((r + 1) * m, 2 * r * m, 2 * m, in_contact)
     if spec.generator == "box":
         nx, ny, nz = (int(k) for k in spec.divisions)
         # Kuhn cells: per cube 3 axis edges, 3 face diagonals and 1 body diagonal

@@ -47,6 +47,15 @@ class Pair:
     wall_velocity: np.ndarray = None
     gap: float = np.nan
     fsum: np.ndarray = None         # force on the first body, per stage
+    self_contact: bool = False      # one surface against itself
+    skip: tuple = None              # (CSR) the neighbours a self-contact node cannot touch
+    # per node, for this contact alone (a node may touch several partners): its contact
+    # mode in this stage, whether it was in contact at the end of the previous step, and
+    # the fraction of this step it spends in contact
+    nodes: np.ndarray = None
+    state: np.ndarray = None
+    memory: np.ndarray = None
+    phi: np.ndarray = None
 
 
 class ContactSystem:
@@ -67,6 +76,11 @@ class ContactSystem:
                 pair.wall_point = np.array(spec.wall.point, float)
                 pair.wall_normal = normal / np.linalg.norm(normal)
                 pair.wall_velocity = np.array(spec.wall.velocity, float)
+            pair.self_contact = bool(spec.self_contact)
+            pair.nodes = np.unique(np.concatenate([s.nodes for s in pair.surfaces]))
+            pair.state = np.zeros(n, np.int8)
+            pair.memory = np.zeros(n, np.int8)
+            pair.phi = np.zeros(n)
             self.pairs.append(pair)
         surfaces = [s for p in self.pairs for s in p.surfaces]
         all_facets = np.concatenate([s.facets for s in surfaces])
@@ -78,6 +92,12 @@ class ContactSystem:
         self.pad = 2.0 * lengths
         self.surface_nodes = np.unique(np.concatenate([s.nodes for s in surfaces]))
         self.faces = np.unique(np.concatenate([s.faces for s in surfaces]))
+        # a self-contact surface does not touch itself next to a node: the nodes that share a
+        # facet with it (CSR over all nodes; empty for the contacts between two bodies)
+        self.no_skip = (np.zeros(n + 1, np.int64), np.zeros(0, np.int64))
+        for pair in self.pairs:
+            if pair.self_contact:
+                pair.skip = self._neighbours(pair.surfaces[0].facets, n)
         h = len(disc.bface_node)
         self.face_weight = np.zeros(h)         # fraction of each face and step in contact
         self.face_velocity = np.zeros((h, d))  # contact velocity per face, times face_weight
@@ -89,9 +109,8 @@ class ContactSystem:
         self.flat = np.diff(self.face_start) == np.bincount(disc.bface_node, minlength=n)
         self.flat &= np.diff(self.face_start) > 0
         self.time = 0.0                         # time of the current stage
-        self.state = np.zeros(n, np.int8)       # OPEN, STICK or SLIP
-        self.memory = np.zeros(n, np.int8)      # in contact at the end of the previous step
-        self.phi = np.zeros(n)                  # fraction of this step in contact
+        self.state = np.zeros(n, np.int8)       # OPEN, STICK or SLIP (the highest of the
+                                                # node's contacts)
         self.xdot = np.zeros((n, d))            # velocity moving the positions of contact nodes
         self.tstar_n = np.zeros(n)
         self.force_acc = np.zeros((n, d))
@@ -111,6 +130,30 @@ class ContactSystem:
         self.slave_near = np.zeros(n, np.int64)
         self.facets_near = np.zeros(max(len(s.facets) for s in surfaces), np.int64)
         self.wall_face_buffer = np.zeros(max(int(np.diff(self.face_start).max()), 1), np.int64)
+
+    #: how far along its surface a self-contact node is blind to its own facets: three rings
+    #: of facets reach beyond the search radius (two facet lengths) along a flat or convex
+    #: surface, so that a node near an edge or corner of the body does not take the facets
+    #: round that corner for a partner
+    SELF_CONTACT_RINGS = 3
+
+    @classmethod
+    def _neighbours(cls, facets, n):
+        """Per node, the nodes within SELF_CONTACT_RINGS facets of it on its surface, itself
+        included (CSR)."""
+        import scipy.sparse as sp
+
+        d = facets.shape[1]
+        a = np.concatenate([facets[:, i] for i in range(d) for j in range(d)])
+        b = np.concatenate([facets[:, j] for i in range(d) for j in range(d)])
+        ring = sp.csr_matrix((np.ones(len(a), np.int8), (a, b)), shape=(n, n))
+        reach = ring
+        for _ in range(cls.SELF_CONTACT_RINGS - 1):
+            reach = (reach @ ring).astype(bool).astype(np.int8)
+        reach = reach.tocsr()
+        reach.sort_indices()
+        return (np.asarray(reach.indptr, np.int64),
+                np.ascontiguousarray(reach.indices, dtype=np.int64))
 
     def _pieces(self, capacity):
         d = self.disc.dim
@@ -155,7 +198,9 @@ class ContactSystem:
         for pair in self.pairs:
             fsum = pair.fsum[stage_index]
             fsum[:] = 0.0
+            pair.state[pair.nodes] = 0
             self._passes(pair, x, v, F, sigma, dt, stage_index, fsum)
+            self.state[pair.nodes] = np.maximum(self.state[pair.nodes], pair.state[pair.nodes])
         RS.settle_nodes(self.surface_nodes, self.faces, v, self.length_sum, self.motion_sum,
                         self.traction_sum, self.face_weight, self.face_velocity, self.xdot,
                         self.tstar_n)
@@ -185,17 +230,22 @@ class ContactSystem:
             if apply:
                 if stage_index == 0:
                     RS.wall_fractions(v, slave, self.gap, self.normal, pair.wall_velocity,
-                                      self.memory, dt, self.phi)
+                                      pair.memory, dt, pair.phi)
                 RS.wall_pass(disc.X, x, F, v, sigma, disc.node_material,
                              disc.material_table, slave, self.face_start, self.face_list,
                              disc.bface_C, disc.bface_others, self.normal,
-                             pair.wall_velocity, pair.friction, self.phi, self.wall_face_buffer,
+                             pair.wall_velocity, pair.friction, pair.phi, self.wall_face_buffer,
                              self.force_acc, fsum, self.face_weight, self.face_velocity,
-                             self.state, self.length_sum, self.motion_sum,
+                             pair.state, self.length_sum, self.motion_sum,
                              self.traction_sum, self.dim)
             return gmin
         gmin = np.inf
-        for first, (slave, master) in enumerate(((0, 1), (1, 0))):
+        # two bodies: each one's nodes against the other's facets, half the force each;
+        # self-contact: the surface against itself once, which finds both sides of every
+        # touching part (so also half the force each)
+        passes = ((0, 0),) if pair.self_contact else ((0, 1), (1, 0))
+        skip = pair.skip if pair.self_contact else self.no_skip
+        for first, (slave, master) in enumerate(passes):
             slave_nodes = pair.surfaces[slave].nodes
             surface = pair.surfaces[master]
             # only the parts of the two surfaces within the search radius of each other
@@ -205,8 +255,8 @@ class ContactSystem:
             if n_near == 0 or n_facets == 0:
                 if apply and stage_index == 0:   # no partner: phi from the memory alone
                     closing_fractions(x, v, slave_nodes, self.partner, self.partner_w,
-                                      self.gap, self.normal, surface.facets, self.memory, dt,
-                                      self.phi)
+                                      self.gap, self.normal, surface.facets, pair.memory, dt,
+                                      pair.phi)
                 continue
             near = self.slave_near[:n_near]
             chosen = self.facets_near[:n_facets]
@@ -215,34 +265,34 @@ class ContactSystem:
             bins = build_bins(x, segs, self.pad)
             g = find_partners(x, near, self.normal_out, segs, *bins, self.pad,
                               self.partner, self.partner_w, self.partner_dist, self.gap,
-                              self.normal)
+                              self.normal, *skip, disc.dim == 3 or pair.self_contact)
             gmin = min(gmin, g)
             if not apply:
                 continue
             if stage_index == 0:
                 closing_fractions(x, v, slave_nodes, self.partner, self.partner_w, self.gap,
-                                  self.normal, segs, self.memory, dt, self.phi)
-            count = self._contact_pieces(x, near, segs, bins)
+                                  self.normal, segs, pair.memory, dt, pair.phi)
+            count = self._contact_pieces(x, near, segs, bins, skip, pair.phi)
             RS.piece_states(disc.X, x, F, v, sigma, disc.node_material,
                             disc.material_table, disc.bface_C, disc.bface_others, segs,
-                            segment_faces, self.phi, count, self.piece_node, self.piece_face,
+                            segment_faces, pair.phi, count, self.piece_node, self.piece_face,
                             self.piece_partner, self.piece_segment, self.piece_length,
                             self.piece_face_length, self.piece_normal, 0.5,
                             1.0 if first == 0 else -1.0, pair.friction, self.force_acc, fsum,
-                            self.face_weight, self.face_velocity, self.state,
+                            self.face_weight, self.face_velocity, pair.state,
                             self.length_sum, self.motion_sum, self.traction_sum, self.dim)
         return gmin
 
-    def _contact_pieces(self, x, slave_nodes, segs, bins):
+    def _contact_pieces(self, x, slave_nodes, segs, bins, skip, phi):
         disc = self.disc
         while True:
             count = contact_pieces(x, disc.X, slave_nodes, self.partner, self.partner_dist,
-                                   self.normal, self.phi, self.face_start, self.face_list,
+                                   self.normal, phi, self.face_start, self.face_list,
                                    disc.bface_others, disc.bface_C, segs, *bins,
                                    self.piece_node,
                                    self.piece_face, self.piece_partner, self.piece_segment,
                                    self.piece_length, self.piece_face_length,
-                                   self.piece_normal)
+                                   self.piece_normal, *skip)
             if count <= len(self.piece_node):
                 return count
             self._pieces(2 * count)
@@ -259,10 +309,20 @@ class ContactSystem:
         return float(sum(pair.fsum[stage_index] @ pair.wall_velocity for pair in self.pairs
                          if pair.wall_normal is not None))
 
+    @property
+    def memory(self) -> np.ndarray:
+        """Who was in contact at the end of the step, per contact (contacts x nodes)."""
+        return np.stack([pair.memory for pair in self.pairs])
+
+    def restore_memory(self, memory):
+        for pair, row in zip(self.pairs, np.atleast_2d(memory)):
+            pair.memory[:] = row
+
     def end_step(self, x, v, F, time=0.0):
         """Remember who is in contact; measure the gaps at the new positions."""
         self.time = time
-        self.memory[self.surface_nodes] = self.state[self.surface_nodes]
+        for pair in self.pairs:
+            pair.memory[pair.nodes] = pair.state[pair.nodes]
         if not self._finite(x):
             return
         self._geometry(x)

@@ -20,6 +20,7 @@ from ..geometry.bins import bin_of
 from ..geometry.facets import (MAX_POLYGON, clip_polygon, closest_point, dual_face_polygon,
                                dual_face_vector, facet_area_vector, plane_frame, polygon_area,
                                project_to_plane)
+from .search import neighbouring
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -60,7 +61,7 @@ def closing_fractions(x, v, slave, partner, partner_w, gap, normal, facets, memo
 def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                    bface_others, bface_C, facets, origin, h, shape, start, items, piece_node,
                    piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
-                   piece_normal):
+                   piece_normal, skip_start, skip_nodes):
     """Pieces of the slave nodes in contact this step (phi > 0) against the master facets
     near them, in node order: piece_length is the size of the overlap (a length in 2D, an
     area in 3D), piece_face_length the size of the slave's face.
@@ -78,18 +79,19 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
         return _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start,
                           face_list, bface_others, bface_C, facets, origin, h, shape, start,
                           items, piece_node, piece_face, piece_partner, piece_segment,
-                          piece_length, piece_face_length, piece_normal)
+                          piece_length, piece_face_length, piece_normal, skip_start,
+                          skip_nodes)
     return _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                       bface_others, bface_C, facets, origin, h, shape, start, items,
                       piece_node, piece_face, piece_partner, piece_segment, piece_length,
-                      piece_face_length, piece_normal)
+                      piece_face_length, piece_normal, skip_start, skip_nodes)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                bface_others, bface_C, facets, origin, h, shape, start, items, piece_node,
                piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
-               piece_normal):
+               piece_normal, skip_start, skip_nodes):
     """contact_pieces in 3D: each face quadrilateral, projected on the plane of a facing
     master triangle, clipped by the quadrilaterals of the triangle's three nodes."""
     capacity = piece_node.shape[0]
@@ -127,6 +129,8 @@ def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
             reach = partner_dist[a] + size
             for it in range(start[cell], start[cell + 1]):
                 sm = items[it]
+                if neighbouring(facets, sm, a, skip_start, skip_nodes):
+                    continue
                 area = facet_area_vector(x, facets[sm], S)
                 facing_contact = 0.0
                 facing_face = 0.0
@@ -177,7 +181,7 @@ def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
 def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                    bface_others, bface_C, segs, origin, h, shape, start, items, piece_node,
                    piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
-                   piece_normal):
+                   piece_normal, skip_start, skip_nodes):
     """contact_pieces in 2D: half-edges against half-segments, by interval overlap."""
     capacity = piece_node.shape[0]
     count = 0
@@ -203,6 +207,8 @@ def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
             f2 = -sign * (m1 - x[a, 0]) / lh
             for it in range(start[cell], start[cell + 1]):
                 sm = items[it]
+                if neighbouring(segs, sm, a, skip_start, skip_nodes):
+                    continue
                 mp = segs[sm, 0]
                 mq = segs[sm, 1]
                 e1 = x[mq, 0] - x[mp, 0]

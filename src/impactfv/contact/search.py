@@ -42,8 +42,21 @@ def surface_normals(x, nodes, facets, nrm):
                 nrm[a, k] /= s
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def neighbouring(facets, s, a, skip_start, skip_nodes):
+    """Whether facet s has a node among node a's own neighbours on its surface (skip_nodes
+    [skip_start[a]:skip_start[a + 1]], self-contact only: a body does not touch itself
+    there)."""
+    for k in range(skip_start[a], skip_start[a + 1]):
+        for j in range(facets.shape[1]):
+            if facets[s, j] == skip_nodes[k]:
+                return True
+    return False
+
+
 @njit(cache=True, error_model="numpy")
-def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w):
+def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w, skip_start,
+                  skip_nodes):
     """Closest partner facet facing node a within ``pad``: (facet, distance) with the
     barycentric weights of the closest point in w, or (-1, inf). Facing: the facet's
     outward normal and the node's point towards each other (a negative dot product, not
@@ -58,6 +71,8 @@ def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w):
     trial = local_vector(d)
     for k in range(start[c], start[c + 1]):
         s = items[k]
+        if neighbouring(facets, s, a, skip_start, skip_nodes):
+            continue
         area = facet_area_vector(x, facets[s], S)
         facing = 0.0
         for m in range(d):
@@ -75,24 +90,30 @@ def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w):
 
 @njit(cache=True, error_model="numpy")
 def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, partner,
-                  partner_w, partner_dist, gap, normal):
+                  partner_w, partner_dist, gap, normal, skip_start, skip_nodes,
+                  beside_is_open):
     """For every slave node: its partner facet (-1 if none within reach), the barycentric
     weights partner_w of the closest point on it, the distance, the gap and the contact
     normal n from the node into the partner (minus the facet's outward unit normal).
     Returns the smallest gap.
 
     The gap is g = (x_closest - x_a) . n where the closest point is the node's projection on
-    the facet's plane. In 3D, where it lies on the facet's edge or corner instead (the node
-    is beside the facet), the gap is the distance: the node is then outside the facet's
-    body, even when it lies behind the facet's plane, as a node on the side of one bar next
-    to the bulging edge of the other does."""
+    the facet's plane. With ``beside_is_open`` (3D, and self-contact in 2D), where the
+    closest point lies on the facet's end, edge or corner instead (the node is beside the
+    facet), the gap is the distance: the node is outside the facet's body even when it lies
+    behind the facet's plane, as a node on the side of one bar next to the bulging edge of
+    the other does, or a node on the top of a slit next to its side. Between two bodies in
+    2D the normal offset is kept: there a node beside the partner's corner still carries
+    the part of its face that overlaps the partner (a small block's corner pressing into a
+    face sank twice as deep with the distance, docs/contact.md)."""
     d = x.shape[1]
     gmin = np.inf
     S = local_vector(d)
     w = local_vector(d)
     for i in range(slave.shape[0]):
         a = slave[i]
-        s, dist = closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w)
+        s, dist = closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w,
+                                skip_start, skip_nodes)
         partner[a] = s
         if s < 0:
             continue
@@ -106,9 +127,8 @@ def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, pa
                 proj += w[m] * (x[facets[s, m], k] - x[p, k])
             normal[a, k] = -S[k] / L
             g += (proj - x[a, k]) * normal[a, k]
-        # (3D only so far: in 2D the normal offset is kept, as the 2D results were measured
-        # with it; docs/contact.md)
-        if d == 3 and dist > abs(g) * (1.0 + 1e-9) + 1e-12 * math.sqrt(L):
+        if beside_is_open and dist > abs(g) * (1.0 + 1e-9) + 1e-12 * (
+                math.sqrt(L) if d == 3 else L):
             g = dist
         for m in range(d):
             partner_w[a, m] = w[m]

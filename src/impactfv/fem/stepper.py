@@ -251,6 +251,9 @@ def unsupported(case, method) -> str | None:
         if spec.model != "slip":
             return (f"{src}: contact[{k}].model: the FE contact is frictionless; method "
                     f"{method!r} needs model = \"slip\"")
+        if spec.self_contact:
+            return (f"{src}: contact[{k}].self: self-contact is not supported by method "
+                    f"{method!r} (use method = \"fv\")")
         for name in spec.bodies:
             i = names.index(name)
             try:

@@ -95,6 +95,47 @@ def disc(centre, radius, rings: int) -> Mesh:
     return Mesh(points, tri, regions)
 
 
+def annulus_segments(radius, inner_radius, rings) -> int:
+    """Cells around an annulus: an even number that makes them about square at mid-radius."""
+    h = (radius - inner_radius) / rings
+    return max(8, 2 * int(round(np.pi * (radius + inner_radius) / 2 / h)))
+
+
+def annulus(centre, radius, inner_radius, rings: int) -> Mesh:
+    """Triangulate the ring inner_radius <= r <= radius: ``rings`` cells through the wall and
+    about square cells around it (annulus_segments, an even number), each cut along one of
+    its diagonals in a checkerboard (no preferred direction). Boundary regions ``outer``
+    and ``inner``."""
+    if not (0 < inner_radius < radius) or not np.isfinite(radius):
+        raise InputError(f"mesh.inner_radius: expected 0 < inner_radius < radius, got "
+                         f"{inner_radius!r} and {radius!r}")
+    if rings < 1:
+        raise InputError(f"mesh.rings: expected a positive integer, got {rings!r}")
+    m = annulus_segments(radius, inner_radius, rings)
+    r = inner_radius + (radius - inner_radius) * np.arange(rings + 1) / rings
+    theta = 2.0 * np.pi * np.arange(m) / m
+    R, T = np.meshgrid(r, theta, indexing="ij")
+    points = np.column_stack([(R * np.cos(T)).ravel(), (R * np.sin(T)).ravel()])
+    points += np.asarray(centre, float)
+    i, j = np.meshgrid(np.arange(rings), np.arange(m), indexing="ij")
+    i, j = i.ravel(), j.ravel()
+    n00 = i * m + j
+    n01 = i * m + (j + 1) % m          # next around
+    n10 = n00 + m                      # next outward
+    n11 = n01 + m
+    cut = (i + j) % 2 == 0
+    first = np.where(cut[:, None], np.column_stack([n00, n10, n11]),
+                     np.column_stack([n00, n10, n01]))
+    second = np.where(cut[:, None], np.column_stack([n00, n11, n01]),
+                      np.column_stack([n10, n11, n01]))
+    tri = np.concatenate([first, second]).astype(np.int64)
+    outer = rings * m + np.arange(m)
+    inner = np.arange(m)
+    regions = {"outer": np.column_stack([outer, np.roll(outer, -1)]),
+               "inner": np.column_stack([np.roll(inner, -1), inner])}
+    return Mesh(points, tri, regions)
+
+
 def rectangle_quads(origin, size, divisions):
     """Bilinear quads of the grid of :func:`rectangle` (the same nodes in the same order),
     counter-clockwise, with the same boundary regions."""

@@ -81,15 +81,17 @@ class FVStepper:
 
     def _reactions_setup(self):
         """Each boundary entry with a prescribed velocity reports the force its support
-        exerts on the body (history columns reaction_<region>_f<c>)."""
+        exerts on the body (history columns reaction_<region>_f<c>, with several bodies
+        reaction_<body>_<region>_f<c>)."""
         import scipy.sparse as sp
 
         m = self.disc
         rows, names = [], []
+        several = len(self.case.bodies) > 1
         for ib, body in enumerate(self.case.bodies):
             for spec in body.boundary:
                 rows.append(spec)
-                names.append(spec.region)
+                names.append(f"{body.name}_{spec.region}" if several else spec.region)
         self.reaction_rows = [k for k, spec in enumerate(rows, start=1)
                               if m.bc_fixed[k].any()]
         seen = {}
@@ -287,4 +289,4 @@ class FVStepper:
         self.loads.at(self.time)
         if self.contact is not None:
             self.contact.end_step(self.x, self.v, self.F, self.time)
-            self.contact.memory[:] = arrays["contact_memory"]
+            self.contact.restore_memory(arrays["contact_memory"])

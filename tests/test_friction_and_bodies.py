@@ -1,0 +1,172 @@
+"""Coulomb friction in the contact Riemann solver, contacts among several bodies, and
+self-contact (docs/contact.md): against Coulomb's law, Newton's cradle and conservation."""
+
+import meshio
+import numpy as np
+import pytest
+from conftest import COPPER, COPPER_03, SOFT
+
+from impactfv import InputError, load_case, run
+from impactfv.mesh.dual import median_dual
+from impactfv.mesh.generators import rectangle
+
+
+def oblique_block(model, friction=None, end_time=3e-5):
+    """A 2 mm copper block hitting a wall below it at 10 m/s with 20 m/s along it."""
+    contact = {"bodies": ["block"], "model": model,
+               "wall": {"point": [0.0, 0.0], "normal": [0.0, 1.0]}}
+    if friction is not None:
+        contact["friction"] = friction
+    return {"run": {"end_time": end_time},
+            "material": [dict(COPPER_03)],
+            "body": [{"name": "block", "material": COPPER_03["name"], "velocity": [20.0, -10.0],
+                      "mesh": {"generator": "rectangle", "origin": [0.0, 2e-5],
+                               "size": [0.002, 0.002], "divisions": [20, 20]}}],
+            "contact": [contact]}
+
+
+def impulses(history):
+    dt = history["dt"]
+    return np.sum(history["contact0_fx"] * dt), np.sum(history["contact0_fy"] * dt)
+
+
+@pytest.mark.parametrize("mu", [0.1, 0.25])
+def test_sliding_impact_obeys_coulombs_law(mu):
+    """The block slides all through the impact: the tangential impulse is mu times the
+    normal one (measured: mu to five digits)."""
+    h = run(load_case(oblique_block("coulomb", mu))).history
+    tangential, normal = impulses(h)
+    assert normal > 0 and tangential < 0
+    assert -tangential / normal == pytest.approx(mu, rel=0.03)
+    assert h["contact0_fy"][-1] == 0.0                               # it bounced off
+    E = h["total_energy"]
+    assert np.all(np.diff(E) <= 1e-12 * E[0])
+
+
+@pytest.mark.parametrize("limit,mu", [("stick", 1e6), ("slip", 0.0)])
+def test_coulomb_friction_has_stick_and_slip_as_its_limits(limit, mu):
+    a = run(load_case(oblique_block("coulomb", mu))).history
+    b = run(load_case(oblique_block(limit))).history
+    for key in ("contact0_fx", "contact0_fy", "momentum_x", "total_energy"):
+        assert np.array_equal(a[key], b[key]), key
+
+
+def test_a_block_sliding_under_gravity_decelerates_at_mu_g():
+    """A soft block put on a wall at 1 m/s under a strong gravity g = 1000 m/s^2 slows down
+    at mu g (measured: 0.977 mu g with mu = 0.2, once the first ringing has passed)."""
+    mu, g, H, W = 0.2, 1000.0, 0.01, 0.02
+    case = {"run": {"end_time": 0.004},
+            "material": [dict(SOFT)],
+            "body": [{"name": "block", "material": "soft", "velocity": [1.0, 0.0],
+                      "body_force": [0.0, -g],
+                      "mesh": {"generator": "rectangle", "origin": [0.0, 0.0],
+                               "size": [W, H], "divisions": [12, 6]}}],
+            "contact": [{"bodies": ["block"], "model": "coulomb", "friction": mu,
+                         "wall": {"point": [0.0, 0.0], "normal": [0.0, 1.0]}}]}
+    h = run(load_case(case)).history
+    M = SOFT["density"] * W * H
+    t, vx = h["time"], h["momentum_x"] / M
+    sliding = (t > 0.001) & (t < 0.0035)
+    deceleration = -np.polyfit(t[sliding], vx[sliding], 1)[0]
+    assert deceleration == pytest.approx(mu * g, rel=0.03)
+
+
+def cradle(bars=3, nx=100, v0=10.0):
+    """Newton's cradle: identical roller-sided bars in a row, the first flying at the others
+    (which touch each other) at v0; every pair of them may touch ("all")."""
+    L, W = 0.01, 0.001
+    bodies, x = [], 0.0
+    for k in range(bars):
+        bodies.append({"name": f"bar{k}", "material": "copper",
+                       "velocity": [v0 if k == 0 else 0.0, 0.0],
+                       "mesh": {"generator": "rectangle", "origin": [x, 0.0], "size": [L, W],
+                                "divisions": [nx, nx // 10]},
+                       "boundary": [{"region": "ymin", "velocity": {"y": 0.0}},
+                                    {"region": "ymax", "velocity": {"y": 0.0}}]})
+        x += L + (1e-4 if k == 0 else 0.0)
+    c = 1487.6
+    end = 1e-4 / v0 + (bars + 1.5) * 2 * L / c
+    return {"run": {"end_time": end}, "material": [dict(COPPER)], "body": bodies,
+            "contact": [{"bodies": "all", "model": "slip"}]}
+
+
+def mean_velocity(body):
+    omega = median_dual(body["reference_points"], body["cells"]).volumes
+    return (omega[:, None] * body["velocity"]).sum(axis=0) / omega.sum()
+
+
+def test_newtons_cradle():
+    """Three bars: the pulse runs through the two that touch, the last one leaves at v0 and
+    the others stay behind (measured: 0.985 v0; the first 0.000, the middle 0.015 v0)."""
+    v0 = 10.0
+    result = run(load_case(cradle(v0=v0)))
+    h = result.history
+    assert [c for c in h if c.startswith("contact") and c.endswith("_fx")] == \
+        ["contact0_fx", "contact1_fx", "contact2_fx"]
+    velocities = [mean_velocity(result.bodies[f"bar{k}"])[0] for k in range(3)]
+    assert velocities[2] == pytest.approx(v0, rel=0.03)
+    assert abs(velocities[0]) < 0.03 * v0 and abs(velocities[1]) < 0.03 * v0
+    M = COPPER["density"] * 0.01 * 0.001
+    assert np.abs(h["momentum_x"] - h["momentum_x"][0]).max() < 1e-12 * M * v0
+    for k in (0, 2):                                   # the pairs that touch
+        assert np.nanmin(h[f"contact{k}_gap"]) > -0.01 * 1e-4
+    assert np.all(np.isnan(h["contact1_gap"]))        # bar0 and bar2 never come near
+
+
+def u_shaped_body(tmp_path, h=1e-4):
+    """A 4 x 4 mm block cut by a slit two cells wide from its top down to 1 mm: two arms on
+    a base, written as a .vtu mesh file."""
+    mesh = rectangle((0.0, 0.0), (40 * h, 40 * h), (40, 40), "alternate")
+    centroid = mesh.points[mesh.cells].mean(axis=1)
+    keep = ~((centroid[:, 0] > 19 * h) & (centroid[:, 0] < 21 * h) & (centroid[:, 1] > 10 * h))
+    cells = mesh.cells[keep]
+    used = np.unique(cells)
+    index = np.full(len(mesh.points), -1)
+    index[used] = np.arange(len(used))
+    path = tmp_path / "u.vtu"
+    points = np.column_stack([mesh.points[used], np.zeros(len(used))])
+    meshio.write(path, meshio.Mesh(points, [("triangle", index[cells])]))
+    return path
+
+
+def test_self_contact_closes_a_slit_without_penetration(tmp_path):
+    """The arms of a U-shaped body swing at each other and close its slit: the body touches
+    itself, nothing passes through (measured: the smallest gap +6e-5 h), the arms bounce
+    back, and its momentum stays exactly what it was (self-contact is internal)."""
+    h = 1e-4
+    case = {"run": {"end_time": 8e-5},
+            "material": [dict(COPPER_03)],
+            "body": [{"name": "u", "material": COPPER_03["name"],
+                      "velocity": ["10*tanh((0.002 - x)/0.0003)*heaviside(y - 0.001)", "0.0"],
+                      "mesh": {"file": str(u_shaped_body(tmp_path, h))}}],
+            "contact": [{"bodies": ["u"], "self": True, "model": "slip"}]}
+    result = run(load_case(case))
+    hist = result.history
+    touching = np.flatnonzero(np.abs(hist["contact0_fx"]) > 0)
+    assert len(touching) and touching[-1] < len(hist["time"]) - 10   # touched, let go
+    assert np.nanmin(hist["contact0_gap"]) > -0.01 * h
+    for key in ("momentum_x", "momentum_y"):
+        assert np.abs(hist[key]).max() < 1e-13
+    E = hist["total_energy"]
+    assert np.all(np.diff(E) <= 1e-12 * E[0])
+    body = result.bodies["u"]
+    p = body["points"][body["triangles"]]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    assert (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).min() > 0
+
+
+@pytest.mark.parametrize("contact,message", [
+    ({"bodies": ["a"], "model": "coulomb"}, "needs friction"),
+    ({"bodies": ["a", "b"], "model": "slip", "friction": 0.2}, "coulomb"),
+    ({"bodies": ["a", "b"], "model": "coulomb", "friction": -0.1}, "greater than or equal"),
+    ({"bodies": ["a", "b"], "self": True}, "self = true takes exactly one body"),
+    ({"bodies": "all", "wall": {"point": [0.0, 0.0], "normal": [1.0, 0.0]}}, "several"),
+])
+def test_bad_contact_entries_are_input_errors(contact, message):
+    bodies = [{"name": n, "material": "copper", "velocity": [0.0, 0.0],
+               "mesh": {"generator": "rectangle", "origin": [x, 0.0], "size": [0.001, 0.001],
+                        "divisions": [2, 2]}} for n, x in (("a", 0.0), ("b", 0.002))]
+    case = {"run": {"end_time": 1e-6}, "material": [dict(COPPER)], "body": bodies,
+            "contact": [contact]}
+    with pytest.raises(InputError, match=message):
+        load_case(case)
