@@ -38,6 +38,7 @@ upwind_traction = point(R.upwind_traction)
 central_velocity = point(R.central_velocity)
 upwind_velocity = point(R.upwind_velocity)
 boundary_state = point(R.boundary_state)
+geometric_boundary_velocity = point(R.geometric_boundary_velocity)
 limiter_factor = point(L.limiter_factor)
 rk_stage = point(T.rk_stage)
 
@@ -268,6 +269,7 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     tC = local_vector(d)
     fix = local_vector(d)
     given = local_vector(d)
+    u = local_vector(d)
     for h in range(bface_node.shape[0]):
         free = 1.0 - bface_contact_weight[h]
         if free == 0.0:
@@ -305,13 +307,13 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
             fix[i] = 1.0 if bc_fixed[bc, i] else 0.0
             given[i] = bc_velocity[bc, i]
         boundary_state(vi, ti, zp, zs, n, fix, given, bc_traction[bc], Z, rhs, vC, tC)
+        # the F equation's velocity: the prescribed one, or the interior one corrected along
+        # the normal only (riemann.geometric_boundary_velocity: no spin into F)
+        geometric_boundary_velocity(vi, ti, tC, vC, fix, zp, n, u)
         for i in range(d):
             force[a, i] += free * tC[i] * ln
-            # the F equation's velocity: the prescribed one, or from the traction with the
-            # p-wave impedance in every direction (as in the interior, riemann.upwind_velocity)
-            vF = vC[i] if fix[i] else vi[i] + (tC[i] - ti[i]) / zp
             for J in range(d):
-                dF[a, i, J] += free * vF * bface_C[h, J]
+                dF[a, i, J] += free * u[i] * bface_C[h, J]
 
 
 @njit(cache=True, parallel=True)
