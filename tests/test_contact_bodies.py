@@ -83,15 +83,15 @@ def test_small_block_on_a_larger_block(model):
     other's face. Momentum is exchanged equal and opposite, energy never rises.
 
     Known shortfall (docs/contact.md): the small block's corner sinks into the larger face by
-    1.8-3.9% of h (h = 0.2 and 0.1 mm, slip and stick; the depth falls like h), more than
-    the 1% of h reached everywhere else; the test holds it below 5% of h."""
+    2.0-2.5% of h at h = 0.2 mm and 3.2-3.9% at h = 0.1 mm (slip and stick), more than the 1%
+    of h reached everywhere else; the test holds it below 3% of h."""
     small = {"name": "small", "material": COPPER["name"], "velocity": [0.0, -50.0],
              "mesh": rect([-1e-3, 0.1e-3], [2e-3, 2e-3])}
     big = {"name": "big", "material": COPPER["name"], "velocity": [0.0, 0.0],
            "mesh": rect([-4e-3, -4e-3], [8e-3, 4e-3])}
     result = run_case([small, big], [COPPER], {"bodies": ["small", "big"], "model": model},
                       30e-6)
-    check_common(result, penetration=0.05)
+    check_common(result, penetration=0.03)
     rho = COPPER["density"]
     ps, pb = (momentum(result.bodies[k], rho) for k in ("small", "big"))
     p0 = rho * 2e-3 * 2e-3 * np.array([0.0, -50.0])

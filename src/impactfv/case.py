@@ -56,6 +56,10 @@ class RunSettings(_Strict):
     limiter: Literal["none", "barth_jespersen", "venkatakrishnan"] = "barth_jespersen"
     method: Literal["fv", "fem-t3", "fem-q4md"] = "fv"
     geometric_flux: Literal["central", "upwind"] = "upwind"
+    boundary_correction: Optional[Literal["normal", "full"]] = Field(
+        None, description="the F equation's velocity on a free or loaded boundary face: the "
+        "interior velocity corrected by the characteristic jump along the normal only, or in "
+        "every direction; unset: normal in 2D, full in 3D (docs/theory.md, Boundaries)")
     max_steps: Optional[int] = Field(None, gt=0, description="cap on the number of steps; "
                                      "unset: 10,000,000, and a run estimated to need more is "
                                      "refused before it starts")

@@ -118,25 +118,26 @@ def contact_state(vA, tA, vB, tB, n, zpA, zsA, zpB, zsB, mu, vtA, ttA, vtB, ttB,
     return tn, True
 
 
-def kinematic_velocity(v, t, tstar, zp, i):
+def kinematic_velocity(v, t, tstar, n, zp, i):
     """Component i of the contact velocity of a body that enters its F equation and moves its
-    contact nodes: v + (t* - t) / Z_p, its own velocity corrected by the jump from its
-    traction t to the contact traction t* over its p-wave impedance Z_p = rho c_p / (da/dA)
-    (v, t and t* in that body's own orientation: t, t* per unit spatial area on a surface of
-    normal n out of it).
+    contact nodes: v + n (n . (t* - t)) / Z_p, its own velocity corrected along the contact
+    normal n by the jump from its traction t to the contact traction t* over its p-wave
+    impedance Z_p = rho c_p / (da/dA) (v, t and t* in that body's own orientation: t, t*
+    per unit spatial area on a surface of normal n out of it; the sign of n does not matter).
 
-    This is the boundary flux of the F equation with t* as the boundary traction (the same
-    rule as on free and loaded faces, docs/theory.md "Boundaries", and the p-wave impedance in
-    every direction as in the interior F flux). Along n it is exactly the contact velocity
-    v*_n of seed eq. 5 (t*_n - t_n = Z_p (v*_n - v_n) is the p characteristic); across n it
-    differs from eqs. 6/8, whose shear-wave term (t*_t - t_t) / (rho c_s) amplifies the
-    tangential nodal stress ten times more (nu = 0.495): at the ends of a contact zone, where
-    the nodal stress is not the face's, that drives F off the positions until a control
-    volume collapses, and in stick a corner node whose F follows the common velocity of
-    eq. 6 while its own velocity is held to it only by the weak shear impedance grows
-    unstable (docs/contact.md). The tractions of eqs. 5-8 are unchanged.
+    Along n this is exactly the contact velocity v*_n of seed eq. 5 (t*_n - t_n =
+    Z_p (v*_n - v_n) is the p characteristic). Across n the body keeps its own velocity: the
+    tangential correction of eqs. 6/8, (t*_t - t_t) / (rho c_s), or the same over Z_p as
+    used before, puts into F a rotation rate (tau (x) n) that the positions of the contact
+    nodes never get; at the ends of a contact zone, where the nodal stress is not the face's,
+    that turned F against the positions until the cells next to the corners folded
+    (docs/contact.md). The tangential tractions of eqs. 6-8 still act in the momentum
+    equation (stick, slip), and the tractions of eqs. 5-8 are unchanged.
     """
-    return v[i] + (tstar[i] - t[i]) / zp
+    jn = 0.0
+    for k in range(n.shape[0]):
+        jn += (tstar[k] - t[k]) * n[k]
+    return v[i] + jn * n[i] / zp
 
 
 def wall_state(vA, tA, n, zpA, zsA, wall_velocity, mu, vt, tt, vstar, tstar):

@@ -6,10 +6,12 @@ boundary flux does, (5 u_a + u_o) / 6 (3D: (6 u_a + u_b + u_c) / 8). The Riemann
 posed in
 nominal tractions, as the seed's eq. 5: per unit reference area of its face each side carries
 t = sigma n da/dA with impedance rho c; written per unit spatial area (where the two sides'
-tractions must balance) that is sigma n with impedance rho c / (da/dA). A piece of spatial
-length l in contact for the fraction phi of the step (its node touched during the step) gives
-weight phi t* l to the node's momentum equation and -weight phi t* l to the partner node's:
-momentum passes between the bodies exactly. Its face carries the node's contact velocity in
+tractions must balance) that is sigma n with impedance rho c / (da/dA). A piece covering the
+part l / l_face of its slave face, in contact for the fraction phi of the step (its node
+touched during the step), gives weight phi t* A to the node's momentum equation and
+-weight phi t* A to the partner node's, with A = (l / l_face) (da/dA) |C_face| that part's
+area measured with F, as every other momentum flux (seed eq. 9a: nominal traction times
+reference area): momentum passes between the bodies exactly. Its face carries the node's contact velocity in
 the F equation, and the node moves with it (laws.kinematic_velocity). Both bodies are treated
 alike by two passes, each with weight 1/2.
 """
@@ -152,8 +154,15 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
             mts[i] = -ts[i]
         ell = piece_length[p]
         share = weight * phi[a] * ell
+        # the force: t* over the piece's part of the slave face, that part's area measured
+        # with F (da/dA times the reference area, seed eq. 9a) as every momentum flux is,
+        # not with the positions
+        lc = 0.0
         for i in range(d):
-            f = share * ts[i]
+            lc += bface_C[face, i] * bface_C[face, i]
+        area = ell / piece_face_length[p] * ra * math.sqrt(lc)
+        for i in range(d):
+            f = weight * phi[a] * area * ts[i]
             force_acc[a, i] += f
             force_acc[b, i] -= f
             fsum[i] += sign * f
@@ -164,8 +173,8 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
         face_weight[face] += wa
         face_weight[face_b] += wb
         for i in range(d):
-            kA = kinematic_velocity(vA, tA, ts, zpA, i)
-            kB = kinematic_velocity(vB, mtB, mts, zpB, i)
+            kA = kinematic_velocity(vA, tA, ts, c, zpA, i)
+            kB = kinematic_velocity(vB, mtB, mts, c, zpB, i)
             face_velocity[face, i] += wa * kA
             face_velocity[face_b, i] += wb * kB
             motion_sum[a, i] += share * (kA - v[a, i])
@@ -237,7 +246,15 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
                                     props[RHO] * props[CS] / r, vw, mu, vt, tt, vs, ts)
             if releases(tn):
                 continue
-            # the projection of this face on the wall
+            # the force acts on the face's projection on the wall measured with F (da/dA
+            # times the reference area, projected with the face's normal from F, left in
+            # scratch by area_ratio); the projection of the positions weighs the motion
+            reference = 0.0
+            facing = 0.0
+            for k in range(d):
+                reference += bface_C[face, k] * bface_C[face, k]
+                facing += scratch[k] * n[k]
+            area = r * math.sqrt(reference) * abs(facing)
             dual_face_vector(x, X, a, bface_others[face], bface_C[face], scratch)
             projected = 0.0
             for k in range(d):
@@ -246,10 +263,10 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
             share = phi[a] * projected
             face_weight[face] += phi[a]
             for k in range(d):
-                f = share * ts[k]
+                f = phi[a] * area * ts[k]
                 force_acc[a, k] += f
                 fsum[k] += f
-                kv = kinematic_velocity(vA, tA, ts, props[RHO] * props[CP] / r, k)
+                kv = kinematic_velocity(vA, tA, ts, n, props[RHO] * props[CP] / r, k)
                 face_velocity[face, k] += phi[a] * kv
                 motion_sum[a, k] += share * (kv - v[a, k])
             state[a] = SLIP if slides else STICK

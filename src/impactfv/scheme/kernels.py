@@ -38,6 +38,7 @@ upwind_traction = point(R.upwind_traction)
 central_velocity = point(R.central_velocity)
 upwind_velocity = point(R.upwind_velocity)
 boundary_state = point(R.boundary_state)
+geometric_boundary_velocity = point(R.geometric_boundary_velocity)
 limiter_factor = point(L.limiter_factor)
 rk_stage = point(T.rk_stage)
 
@@ -251,7 +252,8 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
                    edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
                    prescribed_velocity, prescribed_traction, use_reconstruction,
                    stress_reconstructed,
-                   upwind_geometric, bface_contact_weight, force, dF, power, bc_force, dim):
+                   upwind_geometric, tangential_correction, bface_contact_weight, force, dF,
+                   power, bc_force, dim):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt; into
     power[0] the power of the boundary tractions, sum over the dual boundary faces of
     t^C . v^C |C| (the Riemann states of the faces: zero on free faces, the work of a clamp or
@@ -291,6 +293,7 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     tC = local_vector(d)
     fix = local_vector(d)
     given = local_vector(d)
+    u = local_vector(d)
     boundary_power = 0.0
     for k in range(bc_force.shape[0]):
         for i in range(d):
@@ -332,14 +335,14 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
             fix[i] = 1.0 if bc_fixed[bc, i] else 0.0
             given[i] = prescribed_velocity[h, i]
         boundary_state(vi, ti, zp, zs, n, fix, given, prescribed_traction[h], Z, rhs, vC, tC)
+        # the F equation's velocity: the prescribed one, or the interior one corrected along
+        # the normal only or in every direction (riemann.geometric_boundary_velocity)
+        geometric_boundary_velocity(vi, ti, tC, vC, fix, zp, n, tangential_correction, u)
         for i in range(d):
             force[a, i] += free * tC[i] * ln
             bc_force[bc, i] += free * tC[i] * ln
-            # the F equation's velocity: the prescribed one, or from the traction with the
-            # p-wave impedance in every direction (as in the interior, riemann.upwind_velocity)
-            vF = vC[i] if fix[i] else vi[i] + (tC[i] - ti[i]) / zp
             for J in range(d):
-                dF[a, i, J] += free * vF * bface_C[h, J]
+                dF[a, i, J] += free * u[i] * bface_C[h, J]
             boundary_power += free * tC[i] * vC[i] * ln
     power[0] = boundary_power
 

@@ -115,6 +115,33 @@ def boundary_state(v, t, zp, zs, n, fixed, v_given, t_given, Z, rhs, vC, tC):
         vC[i] += v[i]
 
 
+def geometric_boundary_velocity(w, t, tC, vC, fixed, zp, n, tangential, u):
+    """Velocity on a boundary face in the deformation-gradient equation (the boundary term of
+    seed eq. 9b), written into u: a prescribed component takes its value vC; the others take
+    the interior velocity w plus the characteristic correction with the p-wave impedance,
+    along the spatial normal n only (``tangential`` 0) or in every direction (1),
+
+        u = w + n (n . (t^C - t)) / (rho c_p)                  (normal)
+        u = w + (t^C - t) / (rho c_p)                          (full, as riemann.upwind_velocity)
+
+    The normal part adds u (x) N = (n (x) N) x (a number) to the rate of F, and n (x) N F^-1
+    is a multiple of n (x) n (Nanson: F^-T N is parallel to n), a pure stretch rate. The
+    tangential part adds tau (x) n, half of it a spin: F turns against the positions with
+    nothing to turn it back (a rotation costs no strain energy), and on a compressed free
+    surface in 2D the rotated stresses fold the boundary cells; but it is also what damps the
+    free faces' tangential modes, without which the 3D scheme has growing modes on
+    unstructured tetrahedra (docs/theory.md, "Boundaries"). The traction-free condition on
+    the tangential traction is imposed by the momentum flux (``boundary_state``'s t^C)."""
+    d = n.shape[0]
+    jn = 0.0
+    for i in range(d):
+        jn += (tC[i] - t[i]) * n[i]
+    for i in range(d):
+        normal_part = jn * n[i]
+        u[i] = vC[i] if fixed[i] else \
+            w[i] + (normal_part + tangential * (tC[i] - t[i] - normal_part)) / zp
+
+
 def _impedance_entry(zp, zs, n, i, j):
     """Z_ij = zs delta_ij + (zp - zs) n_j n_i."""
     return zs * (1.0 if i == j else 0.0) + (zp - zs) * n[j] * n[i]

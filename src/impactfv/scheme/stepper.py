@@ -35,6 +35,10 @@ class FVStepper:
         self.limiter = LIMITER_IDS[case.run.limiter]
         self.cfl = case.run.cfl
         self.upwind_geometric = case.run.geometric_flux == "upwind"
+        # normal-only keeps compressed free surfaces from folding in 2D; in 3D the tangential
+        # part is needed to damp the free faces' tangential modes (docs/theory.md)
+        correction = case.run.boundary_correction or ("normal" if d == 2 else "full")
+        self.tangential_correction = 1.0 if correction == "full" else 0.0
         # the upwind geometric flux needs the reconstructed tractions to be second order
         self.stress_reconstructed = self.order == 2 and self.upwind_geometric
         self.loads = Loads(case, m)
@@ -135,7 +139,7 @@ class FVStepper:
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
                          loads.face_velocity, loads.face_traction, self.order == 2,
                          self.stress_reconstructed, self.upwind_geometric,
-                         self.face_contact_weight, self.force, self.dF, self.power,
+                         self.tangential_correction, self.face_contact_weight, self.force, self.dF, self.power,
                          self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
