@@ -2,6 +2,7 @@
 vertex-centred finite volume method (p-F mixed formulation, Total Lagrangian)."""
 
 from .version import __version__
+from .backends import threads as _threads  # noqa: F401  (passive OpenMP waits, first)
 from .errors import InputError, SimulationError
 from .case import load_case
 from .pipeline import run

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..version import __version__
+from ..backends.threads import threads_problem, using_threads
 from ..case import Case
 from ..errors import InputError, SimulationError
 from ..io.checkpoint import case_fingerprint, load_newest_checkpoint, save_checkpoint
@@ -80,6 +81,17 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     overlaps = find_overlaps(case) if case.contacts else []
     if overlaps:
         raise InputError(f"{case.source}: {overlaps[0]}")
+    problem = threads_problem(case.run.threads)
+    if problem:
+        raise InputError(f"{case.source}: {problem}")
+    # the thread count is set before the stepper is built (the edge blocks of the FV
+    # kernels follow it) and given back when the run ends
+    with using_threads(case.run.threads):
+        return _run(case, output_dir, progress, restart, checkpoint_every, handle_signals,
+                    make_stepper)
+
+
+def _run(case, output_dir, progress, restart, checkpoint_every, handle_signals, make_stepper):
     wall_start = _time.perf_counter()
     stepper = make_stepper(case)
     output = case.output
