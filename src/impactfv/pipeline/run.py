@@ -221,6 +221,10 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             target = min(next_output, end)
             if t + dt >= target * (1 - 1e-12):
                 dt = target - t
+            # a stepper that computes its monitors inside the step does so only when a
+            # history row follows it (the last step records one whatever history_every is,
+            # and computes its monitors then)
+            stepper.history_due = (steps + 1) % every == 0
             stepper.step(dt)
             last_dt = dt
             t = target if abs(t + dt - target) <= 1e-12 * end else t + dt

@@ -56,6 +56,15 @@ class FVStepper:
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
+        # what the last stage computed of the new state (rk_update_last): the next stable
+        # time step, the first bad node, the monitors; None / False when not computed for
+        # the current state
+        self._next_dt = None
+        self._bad = None
+        self._monitors_fresh = False
+        #: set by the time loop before a step: whether a history row follows it (the
+        #: monitors are then computed in the last stage's pass; otherwise on demand)
+        self.history_due = True
         self.mass = m.material_table[m.node_material, 0] * m.volume
         self.dt = 0.0
         # energy bookkeeping: the power of the boundary tractions and body forces per stage
@@ -115,9 +124,11 @@ class FVStepper:
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
         state, at the stage's time (the loads are brought to it by the caller)."""
         m = self.disc
-        K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
         if self.stress_reconstructed:
-            K.pack_velocity_and_stress(self.v, self.sigma, self.U, self.dim)
+            K.stress_and_fields(self.F, self.v, m.node_material, m.material_table, self.sigma,
+                                self.U, self.dim)
+        else:
+            K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
         if self.order == 2:
             K.limited_gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C,
                                m.node_half, m.bface_start, m.bface_others, m.bface_C,
@@ -151,9 +162,18 @@ class FVStepper:
                 self.bc_force[self.reaction_rows] - self.reaction_sum @ self.force)
 
     def stable_dt(self) -> float:
+        """cfl x min over nodes of h lambda_min / c_p: computed by the last stage of the step
+        that made the current state, or here (first step, after a restore)."""
+        if self._next_dt is not None:
+            return self._next_dt
         m = self.disc
         return self.cfl * K.stable_time_step(self.F, m.node_material, m.material_table,
                                              m.node_length, self.dim)
+
+    def _forget_state_values(self):
+        self._next_dt = None
+        self._bad = None
+        self._monitors_fresh = False
 
     def step(self, dt: float):
         m = self.disc
@@ -165,15 +185,29 @@ class FVStepper:
         t = self.time
         if self.reaction_rows:
             held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
+        self._forget_state_values()
+        last = len(STAGES) - 1
         for stage, alpha in enumerate(STAGES):
             loads.at(t + (dt if stage else 0.0))
             self.rates(stage)
             # both stages end at t + dt (Heun), where the prescribed velocities are imposed
             loads.at(t + dt)
-            K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
-                        self.force, self.dF, self.contact_state, self.contact_xdot,
-                        m.node_material, m.material_table, m.volume, m.fixed_mask,
-                        loads.fixed_value, self.dim)
+            if stage < last:
+                K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
+                            self.force, self.dF, self.contact_state, self.contact_xdot,
+                            m.node_material, m.material_table, m.volume, m.fixed_mask,
+                            loads.fixed_value, self.dim)
+                continue
+            # the last stage also gives the next time step, the state check and (when a
+            # history row follows) the monitors, in the same pass over the nodes
+            smallest, bad = K.rk_update_last(
+                alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x, self.force,
+                self.dF, self.contact_state, self.contact_xdot, m.node_material,
+                m.material_table, m.volume, m.fixed_mask, loads.fixed_value, m.node_length,
+                m.body_start, bool(self.history_due), self.monitor_buf, self.dim)
+            self._next_dt = self.cfl * smallest
+            self._bad = bad
+            self._monitors_fresh = bool(self.history_due)
         self.time = t + dt
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         if self.reaction_rows:
@@ -187,7 +221,7 @@ class FVStepper:
 
     def check(self, step: int, t: float):
         """Raise SimulationError naming the first node with a non-finite state or J <= 0."""
-        bad = K.state_is_bad(self.v, self.F, self.dim)
+        bad = self._bad if self._bad is not None else K.state_is_bad(self.v, self.F, self.dim)
         if bad < 0:
             return
         m = self.disc
@@ -213,8 +247,10 @@ class FVStepper:
 
     def history_row(self) -> list[float]:
         m = self.disc
-        K.monitors(self.v, self.F, m.node_material, m.material_table, m.volume, m.body_start,
-                   self.monitor_buf, self.dim)
+        if not self._monitors_fresh:
+            K.monitors(self.v, self.F, m.node_material, m.material_table, m.volume,
+                       m.body_start, self.monitor_buf, self.dim)
+            self._monitors_fresh = True
         kinetic, strain, *momentum = self.monitor_buf.sum(axis=0)
         extra = self.contact.history_values() if self.contact is not None else []
         # the energy balance: what the body holds minus the work done on it; it falls by the
@@ -281,6 +317,7 @@ class FVStepper:
                 raise ValueError(f"{name} has shape {arrays[name].shape}, the case gives "
                                  f"{target.shape}")
             target[:] = arrays[name]
+        self._forget_state_values()
         self.time = float(arrays["time"])
         self.external_work = float(arrays["external_work"])
         self.reaction[:] = arrays["reaction"]
