@@ -11,7 +11,7 @@ import numpy as np
 
 from ..backends.cpu import dim_tag
 from ..case import Case
-from ..errors import SimulationError
+from ..errors import InputError, SimulationError
 from ..io.fields import nodal_stress
 from . import kernels as K
 from .discretisation import Discretisation, discretise
@@ -83,6 +83,18 @@ class FVStepper:
             self.contact_state = np.zeros(n, np.int8)
             self.contact_xdot = np.zeros((n, d))
             self.face_contact_weight = np.zeros(len(m.bface_node))
+        # the loops: numba on the CPU (scheme.kernels) or CUDA (backends.cuda), which keeps
+        # the state on the device and copies it back into v, F, x only for outputs
+        self.device = None
+        self._host_stale = False
+        if case.run.backend == "cuda":
+            from ..backends import cuda
+            why = cuda.problem(case) or ('run.backend = "cuda" does not apply body forces '
+                                         'yet; use backend = "cpu"'
+                                         if self.loads.has_body_force else None)
+            if why:
+                raise InputError(f"{case.source}: {why}")
+            self.device = cuda.DeviceState(self)
 
     @property
     def body_names(self) -> list[str]:
@@ -175,7 +187,51 @@ class FVStepper:
         self._bad = None
         self._monitors_fresh = False
 
+    def _host(self):
+        """Bring the host copies of v, F, x up to date (CUDA backend)."""
+        if self.device is not None and self._host_stale:
+            self.device.to_host()
+            self._host_stale = False
+
+    def _device_step(self, dt: float):
+        """step() with the CUDA backend's loops (backends.cuda.DeviceState): the same
+        stages, loads, power and reactions, with the state on the device."""
+        dev, loads = self.device, self.loads
+        dev.save_start()
+        self.dt = dt
+        t = self.time
+        if self.reaction_rows:
+            held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
+        last = len(STAGES) - 1
+        for stage, alpha in enumerate(STAGES):
+            loads.at(t + (dt if stage else 0.0))
+            if loads.varies:
+                dev.loads_up()
+            power, self.bc_force[:], held_force = dev.rates()
+            self.stage_power[stage] = power
+            if self.reaction_rows:
+                self.stage_reaction[stage] = self.reaction_mask * (
+                    self.bc_force[self.reaction_rows] - held_force)
+            loads.at(t + dt)
+            if loads.varies:
+                dev.loads_up()
+            out = dev.update(alpha, dt, stage == last, bool(self.history_due))
+        smallest, bad = out
+        self._next_dt = self.cfl * smallest
+        self._bad = bad
+        self._monitors_fresh = bool(self.history_due)
+        self._host_stale = True
+        self.time = t + dt
+        self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
+        if self.reaction_rows:
+            change = (self.reaction_sum @ (self.mass[:, None] * loads.fixed_value) - held) / dt
+            self.reaction[:] = 0.5 * (self.stage_reaction[0] + self.stage_reaction[1]) \
+                + self.reaction_mask * change
+
     def step(self, dt: float):
+        if self.device is not None:
+            self._forget_state_values()
+            return self._device_step(dt)
         m = self.disc
         loads = self.loads
         self.v0[:] = self.v
@@ -224,6 +280,7 @@ class FVStepper:
         bad = self._bad if self._bad is not None else K.state_is_bad(self.v, self.F, self.dim)
         if bad < 0:
             return
+        self._host()
         m = self.disc
         body = m.bodies[m.body_of_node[bad]]
         with np.errstate(invalid="ignore"):
@@ -248,6 +305,7 @@ class FVStepper:
     def history_row(self) -> list[float]:
         m = self.disc
         if not self._monitors_fresh:
+            self._host()
             K.monitors(self.v, self.F, m.node_material, m.material_table, m.volume,
                        m.body_start, self.monitor_buf, self.dim)
             self._monitors_fresh = True
@@ -260,6 +318,7 @@ class FVStepper:
                 *self.reaction.ravel(), *extra]
 
     def point_data(self) -> dict[str, np.ndarray]:
+        self._host()
         m = self.disc
         n = m.n_nodes
         pressure, von_mises, jac = np.empty(n), np.empty(n), np.empty(n)
@@ -281,6 +340,7 @@ class FVStepper:
 
     def body_fields(self) -> dict[str, dict[str, np.ndarray]]:
         """The point fields of each body (copies), plus its mesh and F."""
+        self._host()
         m = self.disc
         data = self.point_data()
         data.pop("body")
@@ -303,6 +363,7 @@ class FVStepper:
     # ------------------------------------------------------------------ checkpoints
     def state_arrays(self) -> dict[str, np.ndarray]:
         """Everything a restart needs besides the case."""
+        self._host()
         arrays = {"v": self.v, "F": self.F, "x": self.x, "time": np.array(self.time),
                   "external_work": np.array(self.external_work), "reaction": self.reaction}
         if self.contact is not None:
@@ -318,6 +379,9 @@ class FVStepper:
                                  f"{target.shape}")
             target[:] = arrays[name]
         self._forget_state_values()
+        if self.device is not None:
+            self.device.from_host()
+            self._host_stale = False
         self.time = float(arrays["time"])
         self.external_work = float(arrays["external_work"])
         self.reaction[:] = arrays["reaction"]
