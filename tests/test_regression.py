@@ -4,6 +4,8 @@ change results beyond round-off. Regenerate tests/data/regression.json only on p
 """
 
 import json
+import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -45,13 +47,33 @@ def fingerprint(result):
     return out
 
 
-def compute():
-    return {name: fingerprint(run(load_case(case))) for name, case in cases().items()}
+def compute(threads=None):
+    out = {}
+    for name, case in cases().items():
+        if threads is not None:
+            case["run"]["threads"] = threads
+        out[name] = fingerprint(run(load_case(case)))
+    return out
 
 
 def test_results_match_stored_values():
+    check(compute(threads=1))
+
+
+def test_two_threads_match_stored_values():
+    """The same cases with two numba threads (a pool of two, in a subprocess: the tests'
+    own pool has one thread): other edge blocks and reduction orders, the same values."""
+    env = dict(os.environ, NUMBA_NUM_THREADS="2")
+    proc = subprocess.run([sys.executable, __file__, "--print", "--threads", "2"],
+                          capture_output=True, text=True, env=env, timeout=900)
+    assert proc.returncode == 0, proc.stderr
+    now = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert now.pop("threads_in_run") == 2
+    check(now)
+
+
+def check(now):
     stored = json.loads(DATA.read_text())
-    now = compute()
     for case, values in stored.items():
         assert now[case]["steps"] == values["steps"], case
         for key, ref in values.items():
@@ -64,6 +86,26 @@ def test_results_match_stored_values():
             scale = max(float(scale), float(np.abs(ref).max()), 1e-30)
             assert np.allclose(got, ref, rtol=1e-9, atol=1e-9 * scale), (case, key, got, ref)
 
+
+if __name__ == "__main__" and "--print" in sys.argv:
+    # the fingerprints as one JSON line (test_two_threads_match_stored_values), and the
+    # numba thread count the runs used
+    import numba
+
+    from impactfv.scheme.stepper import FVStepper
+
+    threads = int(sys.argv[sys.argv.index("--threads") + 1])
+    seen = set()
+    step = FVStepper.step
+
+    def counting_step(self, dt):
+        seen.add(numba.get_num_threads())
+        return step(self, dt)
+
+    FVStepper.step = counting_step
+    out = compute(threads=threads)
+    out["threads_in_run"] = seen.pop() if len(seen) == 1 else sorted(seen)
+    print(json.dumps(out))
 
 if __name__ == "__main__" and "--store" in sys.argv:
     # --store NAME ... stores only the named cases (the others keep their stored values)

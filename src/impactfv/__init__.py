@@ -5,6 +5,7 @@ vertex-centred finite volume method (p-F mixed formulation, Total Lagrangian).
 its signal handlers before numpy, numba and the case schema are loaded."""
 
 from .version import __version__
+from .backends import threads as _threads  # noqa: F401  (passive OpenMP waits, first)
 from .errors import InputError, SimulationError
 
 __all__ = ["load_case", "run", "InputError", "SimulationError", "__version__"]

@@ -63,6 +63,10 @@ class RunSettings(_Strict):
     max_steps: Optional[int] = Field(None, gt=0, description="cap on the number of steps; "
                                      "unset: 10,000,000, and a run estimated to need more is "
                                      "refused before it starts")
+    threads: Optional[int] = Field(None, gt=0, description="CPU threads of the kernels; "
+                                   "unset: the cores this process may use")
+    backend: Literal["cpu", "cuda"] = Field("cpu", description="where the FV kernels run: "
+                                            "cpu (numba) or cuda (numba-cuda, an NVIDIA GPU)")
 
     @field_validator("end_time", "cfl", "output_interval")
     @classmethod

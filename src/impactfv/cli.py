@@ -61,6 +61,11 @@ def _parser() -> argparse.ArgumentParser:
                        help="write a checkpoint every T seconds of simulated time")
     p_run.add_argument("--plot", action="store_true",
                        help="also write PNG quick-look pictures (as impactfv plot)")
+    p_run.add_argument("--threads", metavar="N", type=_positive_int,
+                       help="CPU threads of the kernels (as run.threads; default: the cores "
+                            "this process may use)")
+    p_run.add_argument("--backend", choices=("cpu", "cuda"),
+                       help="where the FV kernels run (as run.backend; default cpu)")
     p_check = sub.add_parser("check", parents=[common, overrides],
                              help="check a case: mesh, wave speeds, time step, memory",
                              description="Check a case and report its meshes, wave speeds, "
@@ -146,11 +151,26 @@ def _positive_float(text):
     return value
 
 
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive whole number, got {text!r}")
+    return value
+
+
 def _run(args) -> int:
     from .case import load_case
     from .pipeline import run
 
-    case = load_case(args.case, overrides=args.overrides)
+    overrides = list(args.overrides)
+    if args.threads is not None:
+        overrides.append(f"run.threads={args.threads}")
+    if args.backend is not None:
+        overrides.append(f"run.backend={args.backend}")
+    case = load_case(args.case, overrides=overrides)
     if args.restart:
         out = Path(args.restart)
         if not out.is_dir():

@@ -125,8 +125,10 @@ def first_piola(F, props, P):
         _linear_stress_tensor(F, props, P)
         return
     J_ = determinant(F)
-    a = mu * J_ ** (-2.0 / 3.0)
-    b = -mu / 3.0 * J_ ** (-5.0 / 3.0) * _squared_norm_3d(F) + props[KAPPA] * (J_ - 1.0)
+    # one power for both: J^(-5/3) = J^(-2/3) / J
+    j23 = J_ ** (-2.0 / 3.0)
+    a = mu * j23
+    b = -mu / 3.0 * (j23 / J_) * _squared_norm_3d(F) + props[KAPPA] * (J_ - 1.0)
     for i in range(d):
         for J in range(d):
             P[i, J] = a * F[i, J] + b * cofactor_entry(F, i, J)

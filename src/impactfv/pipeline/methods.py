@@ -7,7 +7,14 @@ from ..case import Case
 
 def make_stepper(case: Case):
     """The stepper of ``case.run.method``: "fv" (the upwind vertex-centred finite volume
-    scheme) or one of the explicit FE baselines "fem-t3" and "fem-q4md"."""
+    scheme) or one of the explicit FE baselines "fem-t3" and "fem-q4md". ``run.backend``
+    "cuda" (the FV scheme on a GPU) is refused here with one line when it cannot run."""
+    if case.run.backend == "cuda":
+        from ..backends.cuda import problem
+        from ..errors import InputError
+        why = problem(case)
+        if why:
+            raise InputError(f"{case.source}: {why}")
     if case.run.method == "fv":
         from ..scheme.stepper import FVStepper
         return FVStepper(case)

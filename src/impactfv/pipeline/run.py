@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from ..version import __version__
+from ..backends.threads import threads_problem, using_threads
 from ..case import Case
 from ..errors import InputError, SimulationError
 from ..io.checkpoint import (RESTART_MAY_CHANGE, BadCheckpoint, case_description,
@@ -104,6 +105,17 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     overlaps = find_overlaps(case) if case.contacts else []
     if overlaps:
         raise InputError(f"{case.source}: {overlaps[0]}")
+    problem = threads_problem(case.run.threads)
+    if problem:
+        raise InputError(f"{case.source}: {problem}")
+    # the thread count is set before the stepper is built (the edge blocks of the FV
+    # kernels follow it) and given back when the run ends
+    with using_threads(case.run.threads):
+        return _run(case, output_dir, progress, restart, checkpoint_every, handle_signals,
+                    make_stepper)
+
+
+def _run(case, output_dir, progress, restart, checkpoint_every, handle_signals, make_stepper):
     wall_start = _time.perf_counter()
     resident = resident_bytes()
     stepper = make_stepper(case)
@@ -251,6 +263,10 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             target = min(next_output, end)
             if t + dt >= target * (1 - 1e-12):
                 dt = target - t
+            # a stepper that computes its monitors inside the step does so only when a
+            # history row follows it (the last step records one whatever history_every is,
+            # and computes its monitors then)
+            stepper.history_due = (steps + 1) % every == 0
             stepper.step(dt)
             last_dt = dt
             stop.armed()       # the kernels are compiled: a signal now stops after a step

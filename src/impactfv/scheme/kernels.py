@@ -58,6 +58,23 @@ def compute_stress(F, node_material, table, sigma, dim):
 
 
 @njit(cache=True, parallel=True)
+def stress_and_fields(F, v, node_material, table, sigma, U, dim):
+    """:func:`compute_stress` and :func:`pack_velocity_and_stress` in one pass: sigma_a,
+    and U[a] = (v_a, the independent components of sigma_a) while sigma_a is in registers."""
+    d = len(dim)
+    for a in prange(F.shape[0]):
+        Fa = local_matrix(d)
+        sa = local_matrix(d)
+        load_matrix(F, a, Fa)
+        cauchy_stress(Fa, table[node_material[a]], sa)
+        store_matrix(sa, sigma, a)
+        for i in range(d):
+            U[a, i] = v[a, i]
+            for j in range(i, d):
+                U[a, d + symmetric_index(i, j, d)] = sa[i, j]
+
+
+@njit(cache=True, parallel=True)
 def pack_velocity_and_stress(v, sigma, U, dim):
     """U[a] = (v_a, the independent components of sigma_a): the fields reconstructed to the
     faces."""
@@ -371,6 +388,75 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_
             for J in range(d):
                 F[a, i, J] = rk_stage(alpha, F0[a, i, J], F[a, i, J], dt,
                                       dF[a, i, J] * inv_volume)
+
+
+@njit(cache=True, parallel=True)
+def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_xdot,
+                   node_material, table, volume, fixed_mask, fixed_value, node_length,
+                   body_start, with_monitors, out, dim):
+    """The last Runge-Kutta stage (as :func:`rk_update`) fused with what the time loop needs
+    of the new state, computed while it is still in registers: the stable time step of the
+    next step (as :func:`stable_time_step`), the first node with a non-finite state or
+    J <= 0 (as :func:`state_is_bad`) and, with ``with_monitors``, the energies and momentum
+    of each body into ``out`` (as :func:`monitors`, summed in the same order).
+
+    Returns (min over nodes of h_a lambda_min,a / c_p,a, index of the first bad node or -1).
+    """
+    d = len(dim)
+    n = v.shape[0]
+    smallest = np.inf
+    first_bad = n
+    for k in range(body_start.shape[0] - 1):
+        kinetic = 0.0
+        strain = 0.0
+        p0 = 0.0
+        p1 = 0.0
+        p2 = 0.0
+        for a in prange(body_start[k], body_start[k + 1]):
+            props = table[node_material[a]]
+            inv_volume = 1.0 / volume[a]
+            inv_mass = inv_volume / props[RHO]
+            in_contact = contact_state[a] != 0
+            finite = True
+            Fa = local_matrix(d)
+            va = local_vector(d)
+            for i in range(d):
+                xdot = contact_xdot[a, i] if in_contact else v[a, i]
+                x[a, i] = rk_stage(alpha, x0[a, i], x[a, i], dt, xdot)
+                vn = rk_stage(alpha, v0[a, i], v[a, i], dt, force[a, i] * inv_mass)
+                if fixed_mask[a, i]:
+                    vn = fixed_value[a, i]
+                v[a, i] = vn
+                va[i] = vn
+                finite = finite and np.isfinite(vn)
+            for i in range(d):
+                for J in range(d):
+                    f = rk_stage(alpha, F0[a, i, J], F[a, i, J], dt, dF[a, i, J] * inv_volume)
+                    F[a, i, J] = f
+                    Fa[i, J] = f
+            jac = determinant(Fa)
+            if not (finite and np.isfinite(jac) and jac > 0.0):
+                first_bad = min(first_bad, a)
+            smallest = min(smallest, node_length[a] * min_stretch(Fa) / props[CP])
+            if with_monitors:
+                mass = props[RHO] * volume[a]
+                v2 = 0.0
+                for i in range(d):
+                    v2 += va[i] * va[i]
+                kinetic += 0.5 * mass * v2
+                strain += volume[a] * strain_energy_density(Fa, props)
+                p0 += mass * va[0]
+                p1 += mass * va[1]
+                if d == 3:
+                    p2 += mass * va[d - 1]
+        if with_monitors:
+            out[k, 0] = kinetic
+            out[k, 1] = strain
+            out[k, 2] = p0
+            out[k, 3] = p1
+            if d == 3:
+                out[k, 4] = p2
+    return smallest, (first_bad if first_bad < n else -1)
 
 
 @njit(cache=True, parallel=True)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..backends.cpu import dim_tag
 from ..case import Case
-from ..errors import SimulationError
+from ..errors import InputError, SimulationError
 from ..io.fields import nodal_stress
 from . import kernels as K
 from .discretisation import Discretisation, discretise
@@ -60,6 +60,15 @@ class FVStepper:
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
+        # what the last stage computed of the new state (rk_update_last): the next stable
+        # time step, the first bad node, the monitors; None / False when not computed for
+        # the current state
+        self._next_dt = None
+        self._bad = None
+        self._monitors_fresh = False
+        #: set by the time loop before a step: whether a history row follows it (the
+        #: monitors are then computed in the last stage's pass; otherwise on demand)
+        self.history_due = True
         self.mass = m.material_table[m.node_material, 0] * m.volume
         self.dt = 0.0
         # energy bookkeeping: the power of the boundary tractions and body forces per stage
@@ -78,6 +87,18 @@ class FVStepper:
             self.contact_state = np.zeros(n, np.int8)
             self.contact_xdot = np.zeros((n, d))
             self.face_contact_weight = np.zeros(len(m.bface_node))
+        # the loops: numba on the CPU (scheme.kernels) or CUDA (backends.cuda), which keeps
+        # the state on the device and copies it back into v, F, x only for outputs
+        self.device = None
+        self._host_stale = False
+        if case.run.backend == "cuda":
+            from ..backends import cuda
+            why = cuda.problem(case) or ('run.backend = "cuda" does not apply body forces '
+                                         'yet; use backend = "cpu"'
+                                         if self.loads.has_body_force else None)
+            if why:
+                raise InputError(f"{case.source}: {why}")
+            self.device = cuda.DeviceState(self)
 
     @property
     def body_names(self) -> list[str]:
@@ -121,9 +142,11 @@ class FVStepper:
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
         state, at the stage's time (the loads are brought to it by the caller)."""
         m = self.disc
-        K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
         if self.stress_reconstructed:
-            K.pack_velocity_and_stress(self.v, self.sigma, self.U, self.dim)
+            K.stress_and_fields(self.F, self.v, m.node_material, m.material_table, self.sigma,
+                                self.U, self.dim)
+        else:
+            K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
         if self.order == 2:
             K.limited_gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C,
                                m.node_half, m.bface_start, m.bface_others, m.bface_C,
@@ -139,8 +162,8 @@ class FVStepper:
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
                          loads.face_velocity, loads.face_traction, self.order == 2,
                          self.stress_reconstructed, self.upwind_geometric,
-                         self.tangential_correction, self.face_contact_weight, self.force, self.dF, self.power,
-                         self.bc_force, self.dim)
+                         self.tangential_correction, self.face_contact_weight, self.force,
+                         self.dF, self.power, self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
         power = self.power[0]
@@ -157,11 +180,64 @@ class FVStepper:
                 self.bc_force[self.reaction_rows] - self.reaction_sum @ self.force)
 
     def stable_dt(self) -> float:
+        """cfl x min over nodes of h lambda_min / c_p: computed by the last stage of the step
+        that made the current state, or here (first step, after a restore)."""
+        if self._next_dt is not None:
+            return self._next_dt
         m = self.disc
         return self.cfl * K.stable_time_step(self.F, m.node_material, m.material_table,
                                              m.node_length, self.dim)
 
+    def _forget_state_values(self):
+        self._next_dt = None
+        self._bad = None
+        self._monitors_fresh = False
+
+    def _host(self):
+        """Bring the host copies of v, F, x up to date (CUDA backend)."""
+        if self.device is not None and self._host_stale:
+            self.device.to_host()
+            self._host_stale = False
+
+    def _device_step(self, dt: float):
+        """step() with the CUDA backend's loops (backends.cuda.DeviceState): the same
+        stages, loads, power and reactions, with the state on the device."""
+        dev, loads = self.device, self.loads
+        dev.save_start()
+        self.dt = dt
+        t = self.time
+        if self.reaction_rows:
+            held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
+        last = len(STAGES) - 1
+        for stage, alpha in enumerate(STAGES):
+            loads.at(t + (dt if stage else 0.0))
+            if loads.varies:
+                dev.loads_up()
+            power, self.bc_force[:], held_force = dev.rates()
+            self.stage_power[stage] = power
+            if self.reaction_rows:
+                self.stage_reaction[stage] = self.reaction_mask * (
+                    self.bc_force[self.reaction_rows] - held_force)
+            loads.at(t + dt)
+            if loads.varies:
+                dev.loads_up()
+            out = dev.update(alpha, dt, stage == last, bool(self.history_due))
+        smallest, bad = out
+        self._next_dt = self.cfl * smallest
+        self._bad = bad
+        self._monitors_fresh = bool(self.history_due)
+        self._host_stale = True
+        self.time = t + dt
+        self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
+        if self.reaction_rows:
+            change = (self.reaction_sum @ (self.mass[:, None] * loads.fixed_value) - held) / dt
+            self.reaction[:] = 0.5 * (self.stage_reaction[0] + self.stage_reaction[1]) \
+                + self.reaction_mask * change
+
     def step(self, dt: float):
+        if self.device is not None:
+            self._forget_state_values()
+            return self._device_step(dt)
         m = self.disc
         loads = self.loads
         self.v0[:] = self.v
@@ -171,15 +247,29 @@ class FVStepper:
         t = self.time
         if self.reaction_rows:
             held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
+        self._forget_state_values()
+        last = len(STAGES) - 1
         for stage, alpha in enumerate(STAGES):
             loads.at(t + (dt if stage else 0.0))
             self.rates(stage)
             # both stages end at t + dt (Heun), where the prescribed velocities are imposed
             loads.at(t + dt)
-            K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
-                        self.force, self.dF, self.contact_state, self.contact_xdot,
-                        m.node_material, m.material_table, m.volume, m.fixed_mask,
-                        loads.fixed_value, self.dim)
+            if stage < last:
+                K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
+                            self.force, self.dF, self.contact_state, self.contact_xdot,
+                            m.node_material, m.material_table, m.volume, m.fixed_mask,
+                            loads.fixed_value, self.dim)
+                continue
+            # the last stage also gives the next time step, the state check and (when a
+            # history row follows) the monitors, in the same pass over the nodes
+            smallest, bad = K.rk_update_last(
+                alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x, self.force,
+                self.dF, self.contact_state, self.contact_xdot, m.node_material,
+                m.material_table, m.volume, m.fixed_mask, loads.fixed_value, m.node_length,
+                m.body_start, bool(self.history_due), self.monitor_buf, self.dim)
+            self._next_dt = self.cfl * smallest
+            self._bad = bad
+            self._monitors_fresh = bool(self.history_due)
         self.time = t + dt
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         if self.reaction_rows:
@@ -193,9 +283,10 @@ class FVStepper:
 
     def check(self, step: int, t: float):
         """Raise SimulationError naming the first node with a non-finite state or J <= 0."""
-        bad = K.state_is_bad(self.v, self.F, self.dim)
+        bad = self._bad if self._bad is not None else K.state_is_bad(self.v, self.F, self.dim)
         if bad < 0:
             return
+        self._host()
         m = self.disc
         body = m.bodies[m.body_of_node[bad]]
         with np.errstate(invalid="ignore"):
@@ -219,8 +310,11 @@ class FVStepper:
 
     def history_row(self) -> list[float]:
         m = self.disc
-        K.monitors(self.v, self.F, m.node_material, m.material_table, m.volume, m.body_start,
-                   self.monitor_buf, self.dim)
+        if not self._monitors_fresh:
+            self._host()
+            K.monitors(self.v, self.F, m.node_material, m.material_table, m.volume,
+                       m.body_start, self.monitor_buf, self.dim)
+            self._monitors_fresh = True
         kinetic, strain, *momentum = self.monitor_buf.sum(axis=0)
         extra = self.contact.history_values() if self.contact is not None else []
         # the energy balance: what the body holds minus the work done on it; it falls by the
@@ -230,6 +324,7 @@ class FVStepper:
                 *self.reaction.ravel(), *extra]
 
     def point_data(self) -> dict[str, np.ndarray]:
+        self._host()
         m = self.disc
         n = m.n_nodes
         pressure, von_mises, jac = np.empty(n), np.empty(n), np.empty(n)
@@ -251,6 +346,7 @@ class FVStepper:
 
     def body_fields(self) -> dict[str, dict[str, np.ndarray]]:
         """The point fields of each body (copies), plus its mesh and F."""
+        self._host()
         m = self.disc
         data = self.point_data()
         data.pop("body")
@@ -273,6 +369,7 @@ class FVStepper:
     # ------------------------------------------------------------------ checkpoints
     def state_arrays(self) -> dict[str, np.ndarray]:
         """Everything a restart needs besides the case."""
+        self._host()
         arrays = {"v": self.v, "F": self.F, "x": self.x, "time": np.array(self.time),
                   "external_work": np.array(self.external_work), "reaction": self.reaction}
         if self.contact is not None:
@@ -287,6 +384,10 @@ class FVStepper:
                 raise ValueError(f"{name} has shape {arrays[name].shape}, the case gives "
                                  f"{target.shape}")
             target[:] = arrays[name]
+        self._forget_state_values()
+        if self.device is not None:
+            self.device.from_host()
+            self._host_stale = False
         self.time = float(arrays["time"])
         self.external_work = float(arrays["external_work"])
         self.reaction[:] = arrays["reaction"]
