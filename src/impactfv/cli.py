@@ -99,6 +99,7 @@ def main(argv=None) -> int:
     parser = _parser()
     args = parser.parse_args(argv)
     try:
+        _only_rank_0_reports()
         if args.command == "run":
             return _run(args)
         if args.command == "check":
@@ -139,6 +140,15 @@ def main(argv=None) -> int:
               "mesh", file=sys.stderr)
         return 2
     return 0
+
+
+def _only_rank_0_reports():
+    """Under mpiexec every rank runs the same command and would print the same lines: only
+    rank 0 prints (the others run silently alongside; their exit codes are the same)."""
+    from .parallel.comm import launched_size, rank
+
+    if launched_size() > 1 and rank() != 0:
+        sys.stdout = sys.stderr = open(os.devnull, "w")
 
 
 def _positive_float(text):

@@ -15,6 +15,15 @@ def make_stepper(case: Case):
         why = problem(case)
         if why:
             raise InputError(f"{case.source}: {why}")
+    from ..parallel.comm import world
+    comm = world()
+    if comm is not None:          # started by mpiexec on several ranks (docs/parallel.md)
+        if case.run.method != "fv":
+            from ..errors import InputError
+            raise InputError(f"{case.source}: run.method = {case.run.method!r} runs on one "
+                             "rank; the FV scheme runs on several (start it without mpiexec)")
+        from ..parallel.stepper import ParallelFVStepper
+        return ParallelFVStepper(case, comm)
     if case.run.method == "fv":
         from ..scheme.stepper import FVStepper
         return FVStepper(case)

@@ -37,6 +37,7 @@ from .history import History
 from .progress import progress_bar
 from .result import Interrupted, RunResult
 from .signals import SignalFlag
+from ..parallel.comm import world
 
 
 DEFAULT_MAX_STEPS = 10_000_000
@@ -108,9 +109,12 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     problem = threads_problem(case.run.threads)
     if problem:
         raise InputError(f"{case.source}: {problem}")
+    threads = case.run.threads
+    if threads is None and world() is not None:
+        threads = 1         # one thread per rank under MPI unless run.threads says more
     # the thread count is set before the stepper is built (the edge blocks of the FV
     # kernels follow it) and given back when the run ends
-    with using_threads(case.run.threads):
+    with using_threads(threads):
         return _run(case, output_dir, progress, restart, checkpoint_every, handle_signals,
                     make_stepper)
 
@@ -179,7 +183,9 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
     args = (stepper, schedule, output_dir, progress, restart, checkpoint_every, handle_signals,
             fingerprint, title, wall_start, walls, contacts, description or {}, preflight,
             source)
-    if output_dir is None:
+    comm = getattr(stepper, "comm", None)
+    if output_dir is None or (comm is not None and comm.Get_rank() != 0):
+        # under MPI the files are rank 0's; the others run the same loop without writing
         return _run_stepper(*args)
     with OutputFolder(output_dir, fresh=not restart):
         return _run_stepper(*args)
@@ -198,8 +204,17 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     wall_start = _time.perf_counter() if wall_start is None else wall_start
     interval = schedule.interval
     out = Path(output_dir) if output_dir is not None else None
-    writer = SnapshotWriter(out, "fields", fields=schedule.fields, walls=walls) \
-        if out is not None else None
+    comm = getattr(stepper, "comm", None)
+    root = comm is None or comm.Get_rank() == 0      # the rank that writes the files
+    if out is None:
+        writer = None
+    elif root:
+        writer = SnapshotWriter(out, "fields", fields=schedule.fields, walls=walls)
+    else:
+        writer = _FrameCounter("fields")
+    if not root:
+        progress = False
+    files = out if root else None
     history = History(["time", "dt", *stepper.history_columns()])
     every = max(int(schedule.history_every), 1)
     recorded = [-1]
@@ -223,13 +238,13 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
                   "snapshot_files": np.array([e[1] for e in writer.entries] or [""])}
         arrays.update({"h_" + k: history.data[k][:history.n] for k in history.columns})
         arrays.update({"state_" + k: a for k, a in stepper.state_arrays().items()})
-        return save_checkpoint(out / "checkpoints", steps, arrays)
+        return save_checkpoint(out / "checkpoints", steps, arrays) if root else None
 
-    if out is not None:
+    if files is not None:
         out.mkdir(parents=True, exist_ok=True)
     if restart:
         t, steps, next_output = _restart(out, fingerprint, description, stepper, history,
-                                         writer, schedule, preflight, source)
+                                         writer, schedule, preflight, source, comm)
         if history.n and history.data["time"][history.n - 1] == t:
             recorded[0] = steps
     else:
@@ -249,8 +264,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     def finish(status, last_dt=None):
         if last_dt is not None and recorded[0] != steps:
             record(t, last_dt, steps)      # the last step, whatever history_every is
-        return _finish(out, history, stepper, title, steps, t, wall_start, loop_start, status,
-                       contacts)
+        return _finish(files, history, stepper, title, steps, t, wall_start, loop_start,
+                       status, contacts)
 
     last_dt = None
     try:
@@ -277,7 +292,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
                 record(t, dt, steps)
             if t >= next_output * (1 - 1e-12) or t >= end * (1 - 1e-12):
                 snapshot(t)
-                if out is not None:
+                if files is not None:
                     write_history_csv(out / "history.csv", history.data, history.n)
                 next_output = min(_next_multiple(t, interval), end) \
                     if t < end * (1 - 1e-12) else math.inf
@@ -287,6 +302,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
                 next_checkpoint = _next_multiple(t, checkpoint_every)
             if bar is not None:
                 bar.update(t - bar.n)
+            if comm is not None:   # every rank stops after the same step
+                stop.signum = comm.allreduce(stop.signum or 0, op=_mpi_max()) or None
             if stop.signum is not None:
                 if recorded[0] != steps:
                     record(t, dt, steps)
@@ -311,13 +328,32 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
                      writer.entries if writer else [])
 
 
+class _FrameCounter:
+    """The frame bookkeeping of SnapshotWriter without the files (ranks other than 0)."""
+
+    def __init__(self, stem):
+        self.stem = stem
+        self.entries = []
+
+    def write(self, time, points, cells, point_data):
+        self.entries.append((time, f"{self.stem}_{len(self.entries):04d}.vtu"))
+
+    def write_collection(self):
+        pass
+
+
+def _mpi_max():
+    from mpi4py import MPI
+    return MPI.MAX
+
+
 def _next_multiple(t, interval):
     """The first multiple of ``interval`` after ``t`` (computed, never stepped to)."""
     return (math.floor(t / interval * (1 + 1e-12)) + 1) * interval
 
 
 def _restart(out, fingerprint, description, stepper, history, writer, schedule, preflight,
-             source):
+             source, comm=None):
     """Continue from the newest good checkpoint in ``out/checkpoints``: (t, steps,
     next_output). A truncated or corrupted newest checkpoint is skipped (with a warning) for
     the one before it; a checkpoint of another case is refused naming the changed keys."""
@@ -334,7 +370,19 @@ def _restart(out, fingerprint, description, stepper, history, writer, schedule, 
         if problem:
             raise BadCheckpoint(problem)
 
-    path, data = load_good_checkpoint(out / "checkpoints", accept)
+    if comm is None:
+        path, data = load_good_checkpoint(out / "checkpoints", accept)
+    else:   # rank 0 reads the checkpoint (and refuses it) for all
+        loaded = None
+        if comm.Get_rank() == 0:
+            try:
+                loaded = load_good_checkpoint(out / "checkpoints", accept)
+            except InputError as exc:
+                loaded = exc
+        loaded = comm.bcast(loaded, root=0)
+        if isinstance(loaded, InputError):
+            raise loaded
+        path, data = loaded
     t, steps = float(data["t"]), int(data["steps"])
     end, interval = schedule.end_time, schedule.interval
     where = f"{source}: " if source else ""
@@ -350,7 +398,8 @@ def _restart(out, fingerprint, description, stepper, history, writer, schedule, 
     writer.entries = list(zip(map(float, times), files))
     # frames of the old run after the checkpoint would be mixed with the new ones: the new
     # run writes them again (under the same names when the schedule is unchanged)
-    for frame in out.glob(f"{writer.stem}_*.vtu"):
+    for frame in out.glob(f"{writer.stem}_*.vtu") if comm is None or comm.Get_rank() == 0 \
+            else ():
         number = re.fullmatch(rf"{writer.stem}_(\d+)\.vtu", frame.name)
         if number and int(number.group(1)) >= len(files):
             frame.unlink(missing_ok=True)

@@ -30,6 +30,9 @@ class FVStepper:
         self.case = case
         self.disc = m = disc if disc is not None else discretise(case)
         n, d = m.n_nodes, m.dim
+        # nodes 0 .. n_owned - 1 are this process's; under MPI (impactfv.parallel) the rest
+        # are ghosts whose state comes from their owners
+        self.n_owned = getattr(self, "n_owned", n)
         self.dim = dim_tag(d)
         self.order = case.run.order
         self.limiter = LIMITER_IDS[case.run.limiter]
@@ -77,8 +80,7 @@ class FVStepper:
         self.external_work = 0.0
         self._reactions_setup()
         if case.contacts:
-            from ..contact.driver import ContactSystem
-            self.contact = ContactSystem(case, m)
+            self.contact = self._make_contact(case, m)
             self.contact_state, self.contact_xdot = self.contact.state, self.contact.xdot
             self.face_contact_weight = self.contact.face_weight
             self.contact.end_step(self.x, self.v, self.F, 0.0)  # initial gaps
@@ -99,6 +101,29 @@ class FVStepper:
             if why:
                 raise InputError(f"{case.source}: {why}")
             self.device = cuda.DeviceState(self)
+
+    def _make_contact(self, case, m):
+        from ..contact.driver import ContactSystem
+        return ContactSystem(case, m)
+
+    # what a serial run does where a run over MPI ranks (parallel.stepper) communicates
+    def _sum(self, values):
+        return values
+
+    def _min(self, value):
+        return value
+
+    def _exchange_state(self):
+        pass
+
+    def _sum_power_and_reactions(self, power, reactions):
+        return power, reactions
+
+    def _first_bad(self, bad):
+        return bad
+
+    def _exchange_gradients(self):
+        pass
 
     @property
     def body_names(self) -> list[str]:
@@ -121,13 +146,14 @@ class FVStepper:
                               if m.bc_fixed[k].any()]
         seen = {}
         self.reaction_names = []
+        owned = self.n_owned
         for k in self.reaction_rows:
             base = names[k - 1]
             seen[base] = seen.get(base, 0) + 1
             self.reaction_names.append(base if seen[base] == 1 else f"{base}{seen[base]}")
         n, d = m.n_nodes, m.dim
         if self.reaction_rows:
-            cols = [m.bc_nodes[k] for k in self.reaction_rows]
+            cols = [m.bc_nodes[k][m.bc_nodes[k] < owned] for k in self.reaction_rows]
             self.reaction_sum = sp.csr_matrix(
                 (np.ones(sum(map(len, cols))),
                  (np.repeat(np.arange(len(cols)), list(map(len, cols))), np.concatenate(cols))),
@@ -152,6 +178,7 @@ class FVStepper:
                                m.node_half, m.bface_start, m.bface_others, m.bface_C,
                                m.closure, m.volume, self.limiter, self.grad, self.dim,
                                self.components)
+            self._exchange_gradients()
         loads = self.loads
         stage_time = self.time + (self.dt if stage else 0.0)
         if self.contact is not None:
@@ -169,15 +196,22 @@ class FVStepper:
         power = self.power[0]
         if loads.has_body_force:
             self.force += self.mass[:, None] * loads.acceleration
-            power += float(np.einsum("i,ij,ij->", self.mass, loads.acceleration, self.v))
-        if self.contact is not None:
-            power += self.contact.wall_power(stage)
-        self.stage_power[stage] = power
+            o = self.n_owned
+            power += float(np.einsum("i,ij,ij->", self.mass[:o], loads.acceleration[:o],
+                                     self.v[:o]))
         if self.reaction_rows:
             # the support acts through the Riemann tractions of its faces and, where the
             # prescribed components are imposed on the nodes, by cancelling what is left
             self.stage_reaction[stage] = self.reaction_mask * (
-                self.bc_force[self.reaction_rows] - self.reaction_sum @ self.force)
+                self.bc_force[self.reaction_rows]
+                - self.reaction_sum @ self.force[:self.n_owned])
+            power, self.stage_reaction[stage] = self._sum_power_and_reactions(
+                power, self.stage_reaction[stage])
+        else:
+            power = self._sum(power)
+        if self.contact is not None:
+            power += self.contact.wall_power(stage)     # the same on every rank
+        self.stage_power[stage] = power
 
     def stable_dt(self) -> float:
         """cfl x min over nodes of h lambda_min / c_p: computed by the last stage of the step
@@ -185,8 +219,9 @@ class FVStepper:
         if self._next_dt is not None:
             return self._next_dt
         m = self.disc
-        return self.cfl * K.stable_time_step(self.F, m.node_material, m.material_table,
-                                             m.node_length, self.dim)
+        o = self.n_owned
+        return self.cfl * self._min(K.stable_time_step(
+            self.F[:o], m.node_material[:o], m.material_table, m.node_length[:o], self.dim))
 
     def _forget_state_values(self):
         self._next_dt = None
@@ -245,8 +280,9 @@ class FVStepper:
         self.x0[:] = self.x
         self.dt = dt
         t = self.time
+        o = self.n_owned
         if self.reaction_rows:
-            held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
+            held = self._sum(self.reaction_sum @ (self.mass[:o, None] * loads.fixed_value[:o]))
         self._forget_state_values()
         last = len(STAGES) - 1
         for stage, alpha in enumerate(STAGES):
@@ -254,28 +290,31 @@ class FVStepper:
             self.rates(stage)
             # both stages end at t + dt (Heun), where the prescribed velocities are imposed
             loads.at(t + dt)
+            # the owned nodes (all of them in a serial run)
+            nodal = tuple(a[:o] for a in (self.v0, self.F0, self.x0, self.v, self.F, self.x,
+                                          self.force, self.dF, self.contact_state,
+                                          self.contact_xdot, m.node_material))
+            node_data = tuple(a[:o] for a in (m.volume, m.fixed_mask, loads.fixed_value))
             if stage < last:
-                K.rk_update(alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x,
-                            self.force, self.dF, self.contact_state, self.contact_xdot,
-                            m.node_material, m.material_table, m.volume, m.fixed_mask,
-                            loads.fixed_value, self.dim)
+                K.rk_update(alpha, dt, *nodal, m.material_table, *node_data, self.dim)
+                self._exchange_state()
                 continue
             # the last stage also gives the next time step, the state check and (when a
             # history row follows) the monitors, in the same pass over the nodes
             smallest, bad = K.rk_update_last(
-                alpha, dt, self.v0, self.F0, self.x0, self.v, self.F, self.x, self.force,
-                self.dF, self.contact_state, self.contact_xdot, m.node_material,
-                m.material_table, m.volume, m.fixed_mask, loads.fixed_value, m.node_length,
+                alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
                 m.body_start, bool(self.history_due), self.monitor_buf, self.dim)
-            self._next_dt = self.cfl * smallest
-            self._bad = bad
+            self._exchange_state()
+            self._next_dt = self.cfl * self._min(smallest)
+            self._bad = self._first_bad(bad)
             self._monitors_fresh = bool(self.history_due)
         self.time = t + dt
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         if self.reaction_rows:
             # Runge-Kutta mean of the stages, plus the force that changes the momentum of
             # the held nodes when the prescribed velocity changes
-            change = (self.reaction_sum @ (self.mass[:, None] * loads.fixed_value) - held) / dt
+            change = (self._sum(self.reaction_sum @ (self.mass[:o, None]
+                                                     * loads.fixed_value[:o])) - held) / dt
             self.reaction[:] = 0.5 * (self.stage_reaction[0] + self.stage_reaction[1]) \
                 + self.reaction_mask * change
         if self.contact is not None:
@@ -315,7 +354,7 @@ class FVStepper:
             K.monitors(self.v, self.F, m.node_material, m.material_table, m.volume,
                        m.body_start, self.monitor_buf, self.dim)
             self._monitors_fresh = True
-        kinetic, strain, *momentum = self.monitor_buf.sum(axis=0)
+        kinetic, strain, *momentum = self._sum(self.monitor_buf).sum(axis=0)
         extra = self.contact.history_values() if self.contact is not None else []
         # the energy balance: what the body holds minus the work done on it; it falls by the
         # energy the scheme dissipates (upwinding at fronts and at the contacts)

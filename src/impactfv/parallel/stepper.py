@@ -1,0 +1,173 @@
+"""The FV stepper on one MPI rank: the serial stepper on the rank's local discretisation
+(parallel.partition), with the halo exchanged after each Runge-Kutta stage (v, F, x) and
+after the limited gradients, the sums of the step (power, reactions, energies, momentum) and
+the stable time step reduced over ranks, and the contact surfaces gathered
+(parallel.contact). Outputs gather the owned rows of every rank into the global numbering,
+so that files and checkpoints are those of a serial run."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError, SimulationError
+from ..scheme.discretisation import discretise
+from ..scheme.stepper import FVStepper
+from .contact import GatheredContact
+from .halo import Halo
+from .partition import local_part, partition_nodes
+
+
+class ParallelFVStepper(FVStepper):
+    def __init__(self, case, comm):
+        from mpi4py import MPI
+
+        self.comm = comm
+        self.MPI = MPI
+        self.rank, self.size = comm.Get_rank(), comm.Get_size()
+        if case.run.backend == "cuda":
+            raise InputError(f"{case.source}: run.backend = \"cuda\" runs on one rank; "
+                             "start it without mpiexec")
+        self.global_disc = G = discretise(case)
+        parts = partition_nodes(G, self.size) if self.rank == 0 else None
+        self.parts = comm.bcast(parts, root=0)
+        self.part = local_part(G, self.parts, self.rank)
+        self.n_owned = self.part.n_owned
+        self.halo = Halo(comm, self.part)
+        super().__init__(case, self.part.disc)
+        # what the outputs gather: each rank's owned rows, in the order of all ranks' shares
+        shares = comm.allgather(self.part.owned)
+        self.gather_counts = np.array([len(s) for s in shares], np.int64)
+        self.gather_order = np.concatenate(shares)
+
+    def _make_contact(self, case, m):
+        contact = GatheredContact(case, self.global_disc, self.part, self.comm,
+                                  self.components_for_contact())
+        contact.fixed = self.loads.fixed_value
+        return contact
+
+    def components_for_contact(self):
+        d = self.disc.dim
+        return d + d * (d + 1) // 2 if self.order == 2 and \
+            self.case.run.geometric_flux == "upwind" else d
+
+    # ------------------------------------------------------------------ communication
+    def _sum(self, values):
+        if np.isscalar(values) or np.ndim(values) == 0:
+            return self.comm.allreduce(float(values), op=self.MPI.SUM)
+        out = np.empty_like(values)
+        self.comm.Allreduce(np.ascontiguousarray(values), out, op=self.MPI.SUM)
+        return out
+
+    def _min(self, value):
+        return self.comm.allreduce(float(value), op=self.MPI.MIN)
+
+    def _sum_power_and_reactions(self, power, reactions):
+        both = self._sum(np.concatenate([[power], reactions.ravel()]))
+        return float(both[0]), both[1:].reshape(reactions.shape)
+
+    def _exchange_state(self):
+        self.halo.exchange(self.v, self.F, self.x)
+
+    def _exchange_gradients(self):
+        self.halo.exchange(self.grad)
+
+    def _first_bad(self, bad):
+        n = self.global_disc.n_nodes
+        mine = int(self.part.nodes[bad]) if bad >= 0 else n
+        first = self.comm.allreduce(mine, op=self.MPI.MIN)
+        return first if first < n else -1      # a global node number
+
+    def _global(self, a):
+        """The global array of a per-node array from every rank's owned rows."""
+        mine = np.ascontiguousarray(a[:self.n_owned])
+        width = int(np.prod(a.shape[1:]))
+        every = np.empty((len(self.gather_order),) + a.shape[1:], a.dtype)
+        mpi_type = self.MPI._typedict[a.dtype.char]
+        self.comm.Allgatherv(mine, [every, self.gather_counts * width, mpi_type])
+        out = np.empty_like(every)
+        out[self.gather_order] = every
+        return out
+
+    # ------------------------------------------------------------------ the serial interface
+    def check(self, step: int, t: float):
+        if self._bad is None:
+            from ..scheme import kernels as K
+            o = self.n_owned
+            local = K.state_is_bad(self.v[:o], self.F[:o], self.dim)
+            self._bad = self._first_bad(local)
+        bad = self._bad
+        if bad < 0:
+            return
+        G = self.global_disc
+        F, v = self._global(self.F)[bad], self._global(self.v)[bad]
+        with np.errstate(invalid="ignore"):
+            J = float(np.linalg.det(F))
+        body = G.bodies[G.body_of_node[bad]]
+        what = "non-finite state" if not np.isfinite(J) or not np.all(np.isfinite(v)) \
+            else f"collapsed control volume (J = {J:.3g})"
+        raise SimulationError(
+            f"{what} at step {step}, time {t:.6e} s, body {body.name!r}, node "
+            f"{bad - body.start} (reference position {G.X[bad].tolist()}); try a smaller "
+            "cfl or a finer mesh", step=step, time=t, body=body.name, node=bad - body.start)
+
+    def point_data(self):
+        from ..scheme import kernels as K
+        from ..io.fields import nodal_stress
+
+        G = self.global_disc
+        v, F, x = (self._global(a) for a in (self.v, self.F, self.x))
+        n = G.n_nodes
+        pressure, von_mises, jac = np.empty(n), np.empty(n), np.empty(n)
+        K.point_fields(F, G.node_material, G.material_table, pressure, von_mises, jac,
+                       self.dim)
+        data = {"velocity": v, "displacement": x - G.X, "pressure": pressure,
+                "von_mises": von_mises,
+                "stress": nodal_stress(F, G.node_material, G.material_table), "J": jac,
+                "body": G.body_of_node.astype(np.int32)}
+        if self.contact is not None:
+            s = self.contact.system
+            data["contact_status"] = s.state.astype(np.int32)
+            data["contact_pressure"] = -s.tstar_n
+        self._gathered = (v, F, x)
+        return data
+
+    def snapshot(self):
+        cells = np.concatenate([b.cells for b in self.global_disc.bodies])
+        return self.global_disc.X, cells, self.point_data()
+
+    def body_fields(self):
+        G = self.global_disc
+        data = self.point_data()
+        _, F, x = self._gathered
+        data.pop("body")
+        out = {}
+        for b in G.bodies:
+            s = slice(b.start, b.stop)
+            fields = {key: np.array(value[s]) for key, value in data.items()}
+            cells = b.cells - b.start
+            fields.update(reference_points=G.X[s].copy(), points=x[s].copy(), cells=cells,
+                          F=F[s].copy())
+            fields["triangles" if G.dim == 2 else "tetrahedra"] = cells
+            out[b.name] = fields
+        return out
+
+    def summary(self):
+        G = self.global_disc
+        return {"nodes": int(G.n_nodes), "edges": int(G.n_edges), "ranks": self.size}
+
+    def state_arrays(self):
+        arrays = super().state_arrays()
+        for name in ("v", "F", "x"):
+            arrays[name] = self._global(getattr(self, name))
+        return arrays
+
+    def restore(self, arrays):
+        G = self.global_disc
+        local = dict(arrays)
+        for name in ("v", "F", "x"):
+            a = arrays[name]
+            if a.shape[0] != G.n_nodes:
+                raise ValueError(f"{name} has {a.shape[0]} rows, the case has {G.n_nodes} "
+                                 "nodes")
+            local[name] = a[self.part.nodes]
+        super().restore(local)
