@@ -71,6 +71,9 @@ def _parser() -> argparse.ArgumentParser:
                              description="Check a case and report its meshes, wave speeds, "
                                          "time step, memory and overlaps; run nothing.")
     p_check.add_argument("case", help="TOML case file")
+    p_check.add_argument("--ranks", metavar="N", type=_positive_int,
+                         help="also report the partition over N MPI ranks (nodes, halo nodes "
+                              "and cut edges per rank)")
     p_cmp = sub.add_parser("compare", parents=[common, overrides],
                            help="run the FV and FE methods on a case and compare",
                            description="Run the FV scheme and the FE baselines that can run "
@@ -219,6 +222,10 @@ def _check(args) -> int:
     case = load_case(args.case, overrides=args.overrides)
     report, problems = check_case(case)
     print("\n".join(printable(line) for line in report.splitlines()))
+    if args.ranks and case.run.method == "fv":
+        from .parallel.partition import partition_report
+        from .scheme.discretisation import discretise
+        print("\n".join(partition_report(discretise(case), args.ranks)))
     if problems:
         # what run would refuse is an input error here too
         raise InputError(f"{case.source}: {problems[0]}")

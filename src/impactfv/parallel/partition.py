@@ -33,8 +33,12 @@ def partition_nodes(disc: Discretisation, n_parts: int) -> np.ndarray:
     except ImportError:
         raise InputError("partitioning over MPI ranks needs pymetis: "
                          "pip install 'impactfv[mpi]' (docs/parallel.md)") from None
-    _, parts = pymetis.part_graph(n_parts, xadj=disc.node_edge_start,
-                                  adjncy=disc.node_neighbour)
+    if hasattr(pymetis, "CSRAdjacency"):          # pymetis >= 2025
+        graph = pymetis.CSRAdjacency(disc.node_edge_start, disc.node_neighbour)
+        _, parts = pymetis.part_graph(n_parts, graph)
+    else:
+        _, parts = pymetis.part_graph(n_parts, xadj=disc.node_edge_start,
+                                      adjncy=disc.node_neighbour)
     parts = np.asarray(parts, np.int32)
     # METIS may leave a part empty on tiny graphs: give it a node of the largest part
     for r in range(n_parts):

@@ -157,7 +157,7 @@ class FVStepper:
             self.reaction_sum = sp.csr_matrix(
                 (np.ones(sum(map(len, cols))),
                  (np.repeat(np.arange(len(cols)), list(map(len, cols))), np.concatenate(cols))),
-                shape=(len(cols), n))
+                shape=(len(cols), owned))
             self.reaction_mask = np.array([m.bc_fixed[k] for k in self.reaction_rows], float)
         self.stage_reaction = np.zeros((2, len(self.reaction_rows), d))
         self.bc_force = np.zeros((len(m.bc_fixed), d))
