@@ -24,8 +24,15 @@ pytest.importorskip("pymetis")
 
 
 def _mpiexec():
-    beside = Path(sys.executable).parent / "mpiexec"
-    return str(beside) if beside.exists() else shutil.which("mpiexec")
+    """The mpiexec of the MPICH wheel (beside python, in the scripts folder of this
+    environment or of the user's) or on the PATH."""
+    import site
+    import sysconfig
+    for folder in (Path(sys.executable).parent, Path(sysconfig.get_path("scripts")),
+                   Path(site.getuserbase()) / "bin"):
+        if (folder / "mpiexec").exists():
+            return str(folder / "mpiexec")
+    return shutil.which("mpiexec")
 
 
 MPIEXEC = _mpiexec()
