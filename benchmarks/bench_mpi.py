@@ -15,9 +15,11 @@ Four parts:
 3. the halo: for METIS partitions of 3D box meshes into 2..64 parts, the ghost nodes and
    neighbour ranks per rank, fitted as ghosts = c (N/P)^(2/3);
 4. the model: per rank and stage, time = (N/P) / r + 2 m alpha + b g (N/P)^(2/3) / beta
-   + k alpha_allreduce log2 P, with r the one-rank rate in 3D, m the neighbour ranks, b the
-   bytes per ghost and stage (state v, F, x and the gradients), g the fitted ghost factor;
-   parallel efficiency = ((N/P)/r) / time, for 8 to 1024 ranks and 1M, 10M, 100M nodes.
+   + k alpha_allreduce log2 P + (ghost work) g (N/P)^(2/3) / r, with r the one-rank rate in
+   3D, m the neighbour ranks, b the bytes per ghost and stage (state v, F, x and the
+   gradients), g the fitted ghost factor; with contact also the gathered surface (N^(2/3)
+   nodes of 432 B per stage) and its contact stage on every rank; parallel efficiency =
+   ((N/P)/r) / time, for 8 to 1024 ranks and 1M, 10M, 100M nodes.
 """
 
 from __future__ import annotations
@@ -181,20 +183,36 @@ def model(rate, g, neighbours, net):
     # bytes per ghost and stage in 3D: v, F, x (15 doubles) and the gradients of v and the
     # stress (9 components x 3 directions)
     per_ghost = 8 * (15 + 27)
+    # bytes per gathered contact-surface node and stage: x, v, F, sigma, gradients, the
+    # prescribed velocity (3 + 3 + 9 + 9 + 27 + 3 doubles)
+    per_surface = 8 * 54
     print(f"model: r = {rate / 1e6:.2f} M node-stages/s per rank (3D, measured), "
           f"{per_ghost} B per ghost and stage, {neighbours:.0f} neighbours, alpha = "
-          f"{alpha * 1e6:.2f} us, beta = {beta / 1e9:.2f} GB/s, allreduce {allreduce * 1e6:.2f} us "
-          "x log2 P, 2 per stage")
-    print("  parallel efficiency     P=8    P=64   P=256  P=1024")
-    for total in (1e6, 1e7, 1e8):
-        cells = []
-        for P in (8, 64, 256, 1024):
-            local = total / P
-            work = local / rate
-            comm = 2 * neighbours * alpha + per_ghost * g * local ** (2 / 3) / beta \
-                + 2 * allreduce * max(1.0, math.log2(P))
-            cells.append(work / (work + comm))
-        print(f"  {total:9.0e} nodes      " + "  ".join(f"{c:5.2f}" for c in cells))
+          f"{alpha * 1e6:.2f} us, beta = {beta / 1e9:.2f} GB/s, allreduce "
+          f"{allreduce * 1e6:.2f} us x log2 P, 2 per stage; a ghost costs the work of an owned "
+          "node (its stress and gradient are computed, its edges to owned nodes twice)")
+
+    def efficiency(total, P, surface):
+        local = total / P
+        ghosts = g * local ** (2 / 3)
+        useful = local / rate
+        time = (local + ghosts) / rate + 2 * neighbours * alpha + per_ghost * ghosts / beta \
+            + 2 * allreduce * max(1.0, math.log2(P))
+        if surface:
+            # a contact face of N^(2/3) nodes, gathered on every rank (allgather, log2 P
+            # latency terms) and its contact stage computed on every rank (about the cost of
+            # as many volume nodes)
+            S = total ** (2 / 3)
+            time += S * per_surface / beta + alpha * max(1.0, math.log2(P)) + S / rate
+        return useful / time
+
+    for surface in (False, True):
+        print("  parallel efficiency" + (", with a contact face of N^(2/3) nodes" if surface
+                                         else ", no contact") + ":")
+        print("                 P=8    P=64   P=256  P=1024")
+        for total in (1e6, 1e7, 1e8):
+            cells = [efficiency(total, P, surface) for P in (8, 64, 256, 1024)]
+            print(f"    {total:7.0e} nodes " + "  ".join(f"{c:5.2f}" for c in cells))
 
 
 def main():

@@ -32,15 +32,17 @@ class Halo:
     def exchange(self, *arrays):
         """Overwrite the ghost rows of ``arrays`` (first axis: local nodes) with their
         owners' rows."""
-        from mpi4py import MPI
+        self.end(self.begin(*arrays))
 
+    def begin(self, *arrays):
+        """Post the messages of an exchange (returns what :meth:`end` completes); the owned
+        rows may be read, the ghost rows must not be, until then."""
         width = [int(np.prod(a.shape[1:])) for a in arrays]
         total = sum(width)
-        requests, inbox = [], {}
+        requests, inbox, outbox = [], {}, []
         for r, rows in self.recv.items():
             inbox[r] = np.empty((len(rows), total))
             requests.append(self.comm.Irecv(inbox[r], source=r, tag=7))
-        outbox = []
         sent = 0
         for r, rows in self.send.items():
             buf = np.empty((len(rows), total))
@@ -51,10 +53,17 @@ class Halo:
             outbox.append(buf)
             sent += buf.nbytes
             requests.append(self.comm.Isend(buf, dest=r, tag=7))
+        self.messages, self.bytes = len(self.send), sent
+        return arrays, width, requests, inbox, outbox
+
+    def end(self, pending):
+        """Wait for the messages of :meth:`begin` and write the ghost rows."""
+        from mpi4py import MPI
+
+        arrays, width, requests, inbox, _ = pending
         MPI.Request.Waitall(requests)
         for r, rows in self.recv.items():
             col = 0
             for a, w in zip(arrays, width):
                 a[rows] = inbox[r][:, col:col + w].reshape((len(rows),) + a.shape[1:])
                 col += w
-        self.messages, self.bytes = len(self.send), sent

@@ -33,6 +33,7 @@ class ParallelFVStepper(FVStepper):
         self.part = local_part(G, self.parts, self.rank)
         self.n_owned = self.part.n_owned
         self.halo = Halo(comm, self.part)
+        self._pending = None          # a state exchange under way (begun after a stage)
         super().__init__(case, self.part.disc)
         # what the outputs gather: each rank's owned rows, in the order of all ranks' shares
         shares = comm.allgather(self.part.owned)
@@ -65,8 +66,13 @@ class ParallelFVStepper(FVStepper):
         both = self._sum(np.concatenate([[power], reactions.ravel()]))
         return float(both[0]), both[1:].reshape(reactions.shape)
 
-    def _exchange_state(self):
-        self.halo.exchange(self.v, self.F, self.x)
+    def _begin_state_exchange(self):
+        self._pending = self.halo.begin(self.v, self.F, self.x)
+
+    def _end_state_exchange(self):
+        if self._pending is not None:
+            self.halo.end(self._pending)
+            self._pending = None
 
     def _exchange_gradients(self):
         self.halo.exchange(self.grad)

@@ -113,7 +113,10 @@ class FVStepper:
     def _min(self, value):
         return value
 
-    def _exchange_state(self):
+    def _begin_state_exchange(self):
+        pass
+
+    def _end_state_exchange(self):
         pass
 
     def _sum_power_and_reactions(self, power, reactions):
@@ -168,11 +171,12 @@ class FVStepper:
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
         state, at the stage's time (the loads are brought to it by the caller)."""
         m = self.disc
-        if self.stress_reconstructed:
-            K.stress_and_fields(self.F, self.v, m.node_material, m.material_table, self.sigma,
-                                self.U, self.dim)
-        else:
-            K.compute_stress(self.F, m.node_material, m.material_table, self.sigma, self.dim)
+        # under MPI the owned nodes' stresses are computed while their ghosts' states arrive
+        o = self.n_owned
+        self._stresses(slice(0, o))
+        self._end_state_exchange()
+        if o < m.n_nodes:
+            self._stresses(slice(o, None))
         if self.order == 2:
             K.limited_gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C,
                                m.node_half, m.bface_start, m.bface_others, m.bface_C,
@@ -212,6 +216,17 @@ class FVStepper:
         if self.contact is not None:
             power += self.contact.wall_power(stage)     # the same on every rank
         self.stage_power[stage] = power
+
+    def _stresses(self, rows: slice):
+        """Cauchy stress (and with the upwind geometric flux the packed fields U) of the
+        nodes ``rows``."""
+        m = self.disc
+        if self.stress_reconstructed:
+            K.stress_and_fields(self.F[rows], self.v[rows], m.node_material[rows],
+                                m.material_table, self.sigma[rows], self.U[rows], self.dim)
+        else:
+            K.compute_stress(self.F[rows], m.node_material[rows], m.material_table,
+                             self.sigma[rows], self.dim)
 
     def stable_dt(self) -> float:
         """cfl x min over nodes of h lambda_min / c_p: computed by the last stage of the step
@@ -297,14 +312,14 @@ class FVStepper:
             node_data = tuple(a[:o] for a in (m.volume, m.fixed_mask, loads.fixed_value))
             if stage < last:
                 K.rk_update(alpha, dt, *nodal, m.material_table, *node_data, self.dim)
-                self._exchange_state()
+                self._begin_state_exchange()
                 continue
             # the last stage also gives the next time step, the state check and (when a
             # history row follows) the monitors, in the same pass over the nodes
             smallest, bad = K.rk_update_last(
                 alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
                 m.body_start, bool(self.history_due), self.monitor_buf, self.dim)
-            self._exchange_state()
+            self._begin_state_exchange()
             self._next_dt = self.cfl * self._min(smallest)
             self._bad = self._first_bad(bad)
             self._monitors_fresh = bool(self.history_due)
@@ -319,6 +334,7 @@ class FVStepper:
                 + self.reaction_mask * change
         if self.contact is not None:
             self.contact.end_step(self.x, self.v, self.F, self.time)
+        self._end_state_exchange()
 
     def check(self, step: int, t: float):
         """Raise SimulationError naming the first node with a non-finite state or J <= 0."""
