@@ -61,6 +61,10 @@ for name, case in cases.items():
         a, b = np.asarray(cpu.bodies["block"][key]), np.asarray(gpu.bodies["block"][key])
         err = max(err, float(np.abs(a - b).max() / np.abs(a).max()))
     for key, values in cpu.history.items():
+        if key in ("dissipated_energy", "energy_balance"):
+            # not measured on the device yet: NaN there (docs/architecture.md, "Backends")
+            assert np.isnan(gpu.history[key][1:]).all(), key
+            continue
         a, b = np.asarray(values), np.asarray(gpu.history[key])
         scale = np.abs(a).max()
         if scale > 0:

@@ -62,10 +62,6 @@ class ParallelFVStepper(FVStepper):
     def _min(self, value):
         return self.comm.allreduce(float(value), op=self.MPI.MIN)
 
-    def _sum_power_and_reactions(self, power, reactions):
-        both = self._sum(np.concatenate([[power], reactions.ravel()]))
-        return float(both[0]), both[1:].reshape(reactions.shape)
-
     def _begin_state_exchange(self):
         self._pending = self.halo.begin(self.v, self.F, self.x)
 

@@ -19,6 +19,7 @@ from numba import njit, prange
 from .. import materials as M
 from ..backends.cpu import (load_matrix, load_vector, local_components, local_matrix,
                             local_rows, local_vector, point, store_matrix)
+from ..tensors import cofactor_entry as _cofactor_entry
 from ..tensors import determinant as _determinant
 from ..tensors import symmetric_index as _symmetric_index
 from . import limiters as L
@@ -30,6 +31,7 @@ strain_energy_density = point(M.strain_energy_density)
 pressure_and_von_mises = point(M.pressure_and_von_mises)
 min_stretch = point(M.min_stretch)
 determinant = point(_determinant)
+cofactor_entry = point(_cofactor_entry)
 symmetric_index = point(_symmetric_index)
 spatial_normal = point(R.spatial_normal)
 face_geometry = point(R.face_geometry)
@@ -362,6 +364,30 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
                 dF[a, i, J] += free * u[i] * bface_C[h, J]
             boundary_power += free * tC[i] * vC[i] * ln
     power[0] = boundary_power
+
+
+@njit(cache=True, parallel=True)
+def energy_rate(v, force, F, sigma, dF, fixed_mask, dim):
+    """The rate of the kinetic and strain energy of the nodes as their rates give it:
+    sum of v . f over the velocity components that are not held, plus P : Omega dF/dt with
+    the first Piola stress P = sigma cof F (docs/theory.md, "Energy balance")."""
+    d = len(dim)
+    total = 0.0
+    for a in prange(v.shape[0]):
+        rate = 0.0
+        for i in range(d):
+            if not fixed_mask[a, i]:
+                rate += v[a, i] * force[a, i]
+        Fa = local_matrix(d)
+        load_matrix(F, a, Fa)
+        for i in range(d):
+            for J in range(d):
+                P = 0.0
+                for k in range(d):
+                    P += sigma[a, i, k] * cofactor_entry(Fa, k, J)
+                rate += P * dF[a, i, J]
+        total += rate
+    return total
 
 
 @njit(cache=True, parallel=True)

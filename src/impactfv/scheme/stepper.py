@@ -78,6 +78,14 @@ class FVStepper:
         self.power = np.zeros(1)
         self.stage_power = np.zeros(2)
         self.external_work = 0.0
+        # what the semi-discrete scheme removes per stage (power in minus the rate of the
+        # energy the rates give), and its Runge-Kutta integral
+        self.stage_dissipation = np.zeros(2)
+        self.dissipated = 0.0
+        # the strongly held velocity components (owned nodes): the support's work there is
+        # the kinetic energy it gives them minus the power of the force it cancels
+        self.held_node, self.held_comp = np.nonzero(m.fixed_mask[:self.n_owned])
+        self.has_supports = bool(m.bc_fixed.any())      # the same on every rank
         self._reactions_setup()
         if case.contacts:
             self.contact = self._make_contact(case, m)
@@ -118,9 +126,6 @@ class FVStepper:
 
     def _end_state_exchange(self):
         pass
-
-    def _sum_power_and_reactions(self, power, reactions):
-        return power, reactions
 
     def _first_bad(self, bad):
         return bad
@@ -198,24 +203,33 @@ class FVStepper:
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
         power = self.power[0]
+        o = self.n_owned
         if loads.has_body_force:
             self.force += self.mass[:, None] * loads.acceleration
-            o = self.n_owned
             power += float(np.einsum("i,ij,ij->", self.mass[:o], loads.acceleration[:o],
                                      self.v[:o]))
+        if self.has_supports:
+            # the power of the support's cancelling of the force on held components (the
+            # kinetic energy it gives them is added at the end of the step)
+            comps = (self.held_node, self.held_comp)
+            power -= float(np.dot(self.force[comps], self.v[comps]))
+        rate = K.energy_rate(self.v[:o], self.force[:o], self.F[:o], self.sigma[:o],
+                             self.dF[:o], m.fixed_mask[:o], self.dim)
+        sums = np.array([power, rate])
         if self.reaction_rows:
             # the support acts through the Riemann tractions of its faces and, where the
             # prescribed components are imposed on the nodes, by cancelling what is left
-            self.stage_reaction[stage] = self.reaction_mask * (
-                self.bc_force[self.reaction_rows]
-                - self.reaction_sum @ self.force[:self.n_owned])
-            power, self.stage_reaction[stage] = self._sum_power_and_reactions(
-                power, self.stage_reaction[stage])
-        else:
-            power = self._sum(power)
+            reaction = self.reaction_mask * (self.bc_force[self.reaction_rows]
+                                             - self.reaction_sum @ self.force[:o])
+            sums = np.concatenate([sums, reaction.ravel()])
+        sums = self._sum(sums)          # over ranks: one reduction per stage
+        power, rate = float(sums[0]), float(sums[1])
+        if self.reaction_rows:
+            self.stage_reaction[stage] = sums[2:].reshape(self.stage_reaction[stage].shape)
         if self.contact is not None:
             power += self.contact.wall_power(stage)     # the same on every rank
         self.stage_power[stage] = power
+        self.stage_dissipation[stage] = power - rate
 
     def _stresses(self, rows: slice):
         """Cauchy stress (and with the upwind geometric flux the packed fields U) of the
@@ -265,6 +279,7 @@ class FVStepper:
                 dev.loads_up()
             power, self.bc_force[:], held_force = dev.rates()
             self.stage_power[stage] = power
+            self.stage_dissipation[stage] = np.nan     # not measured on the device yet
             if self.reaction_rows:
                 self.stage_reaction[stage] = self.reaction_mask * (
                     self.bc_force[self.reaction_rows] - held_force)
@@ -279,6 +294,7 @@ class FVStepper:
         self._host_stale = True
         self.time = t + dt
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
+        self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
         if self.reaction_rows:
             change = (self.reaction_sum @ (self.mass[:, None] * loads.fixed_value) - held) / dt
             self.reaction[:] = 0.5 * (self.stage_reaction[0] + self.stage_reaction[1]) \
@@ -325,6 +341,11 @@ class FVStepper:
             self._monitors_fresh = bool(self.history_due)
         self.time = t + dt
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
+        self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
+        if self.has_supports:
+            comps = (self.held_node, self.held_comp)
+            self.external_work += self._sum(0.5 * float(np.dot(
+                self.mass[self.held_node], self.v[comps] ** 2 - self.v0[comps] ** 2)))
         if self.reaction_rows:
             # Runge-Kutta mean of the stages, plus the force that changes the momentum of
             # the held nodes when the prescribed velocity changes
@@ -360,7 +381,7 @@ class FVStepper:
         reactions = [f"reaction_{name}_f{c}" for name in self.reaction_names
                      for c in components]
         return (["kinetic_energy", "strain_energy", "total_energy", *momentum,
-                 "external_work", "energy_balance", *reactions]
+                 "external_work", "dissipated_energy", "energy_balance", *reactions]
                 + (self.contact.history_columns() if self.contact is not None else []))
 
     def history_row(self) -> list[float]:
@@ -372,11 +393,12 @@ class FVStepper:
             self._monitors_fresh = True
         kinetic, strain, *momentum = self._sum(self.monitor_buf).sum(axis=0)
         extra = self.contact.history_values() if self.contact is not None else []
-        # the energy balance: what the body holds minus the work done on it; it falls by the
-        # energy the scheme dissipates (upwinding at fronts and at the contacts)
-        balance = kinetic + strain - self.external_work
-        return [kinetic, strain, kinetic + strain, *momentum, self.external_work, balance,
-                *self.reaction.ravel(), *extra]
+        # the energy balance: what the bodies hold minus the work done on them plus what the
+        # scheme dissipated (upwinding at fronts and boundaries, the contacts); constant up to
+        # the time-integration error
+        balance = kinetic + strain - self.external_work + self.dissipated
+        return [kinetic, strain, kinetic + strain, *momentum, self.external_work,
+                self.dissipated, balance, *self.reaction.ravel(), *extra]
 
     def point_data(self) -> dict[str, np.ndarray]:
         self._host()
@@ -426,7 +448,8 @@ class FVStepper:
         """Everything a restart needs besides the case."""
         self._host()
         arrays = {"v": self.v, "F": self.F, "x": self.x, "time": np.array(self.time),
-                  "external_work": np.array(self.external_work), "reaction": self.reaction}
+                  "external_work": np.array(self.external_work),
+                  "dissipated": np.array(self.dissipated), "reaction": self.reaction}
         if self.contact is not None:
             arrays["contact_memory"] = self.contact.memory
         return arrays
@@ -445,6 +468,7 @@ class FVStepper:
             self._host_stale = False
         self.time = float(arrays["time"])
         self.external_work = float(arrays["external_work"])
+        self.dissipated = float(arrays["dissipated"])
         self.reaction[:] = arrays["reaction"]
         self.loads.at(self.time)
         if self.contact is not None:
