@@ -311,3 +311,18 @@ def test_what_runs_on_one_rank_only_is_refused(tmp_path):
     assert done.returncode == 2
     err = done.stderr.strip().splitlines()
     assert len(err) == 1 and "runs on one rank" in err[0]
+
+
+def test_a_folder_in_use_is_refused_on_every_rank(tmp_path):
+    """Rank 0 holds the output folder's lock for all ranks: when another run writes there,
+    every rank stops with exit 2 and one line, none is left waiting."""
+    from impactfv.io.folder import LOCK_NAME
+    case = tmp_path / "case.toml"
+    case.write_text(BARS)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / LOCK_NAME).write_text(f"{os.getpid()}\n")      # a live process holds it
+    done = mpirun(2, "run", case, "-o", out, "--no-progress", timeout=120)
+    assert done.returncode == 2
+    err = done.stderr.strip().splitlines()
+    assert len(err) == 1 and "another impactfv run" in err[0]

@@ -101,6 +101,21 @@ def main(argv=None) -> int:
     interrupts.install()
     parser = _parser()
     args = parser.parse_args(argv)
+    from .parallel.comm import end_together
+    try:
+        code = _main(args)
+    except Exception:
+        # a bug: its traceback, and under mpiexec the other ranks must not wait for this one
+        import traceback
+        traceback.print_exc()
+        end_together(1)
+        return 1
+    if code:
+        end_together(code)        # under mpiexec: every rank stops, or the job is aborted
+    return code
+
+
+def _main(args) -> int:
     try:
         _only_rank_0_reports()
         if args.command == "run":

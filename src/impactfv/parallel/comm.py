@@ -16,6 +16,7 @@ SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "PMIX_SIZE", "MPI_LOCALNRA
                   "SLURM_NTASKS")
 
 _world = []
+_ending = []
 
 
 def launched_size() -> int:
@@ -46,8 +47,30 @@ def world():
             raise InputError(f"started on {size} MPI ranks but mpi4py is not installed: "
                              "pip install 'impactfv[mpi]' (docs/parallel.md)") from None
         comm = MPI.COMM_WORLD if MPI.COMM_WORLD.Get_size() > 1 else None
+        if comm is not None:
+            # a communicator of its own for ending together (end_together), so that its
+            # barrier never meets a collective of the run
+            _ending.append(comm.Dup())
     _world.append(comm)
     return comm
+
+
+def end_together(code: int, wait_s: float = 10.0):
+    """A rank stopping with exit ``code``: when every rank stops too (an input error in the
+    case, a simulation failure, a signal: all ranks see them together) they meet at a
+    barrier and exit normally; a rank that stops alone (a file rank 0 cannot write, an
+    unexpected error) would leave the others waiting in the run's next collective, so after
+    ``wait_s`` seconds it aborts the whole job with its code."""
+    if not _ending:
+        return
+    import time
+
+    request = _ending[0].Ibarrier()
+    deadline = time.monotonic() + wait_s
+    while not request.Test():
+        if time.monotonic() > deadline:
+            _ending[0].Abort(code or 1)
+        time.sleep(0.01)
 
 
 def rank() -> int:

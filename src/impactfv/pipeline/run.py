@@ -184,11 +184,28 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
             fingerprint, title, wall_start, walls, contacts, description or {}, preflight,
             source)
     comm = getattr(stepper, "comm", None)
-    if output_dir is None or (comm is not None and comm.Get_rank() != 0):
-        # under MPI the files are rank 0's; the others run the same loop without writing
+    if output_dir is None:
         return _run_stepper(*args)
-    with OutputFolder(output_dir, fresh=not restart):
+    if comm is None:
+        with OutputFolder(output_dir, fresh=not restart):
+            return _run_stepper(*args)
+    # under MPI the files are rank 0's (it holds the folder's lock, and tells the others
+    # when it cannot); the others run the same loop without writing
+    folder, refused = None, None
+    if comm.Get_rank() == 0:
+        folder = OutputFolder(output_dir, fresh=not restart)
+        try:
+            folder.__enter__()
+        except InputError as exc:
+            folder, refused = None, exc
+    refused = comm.bcast(refused, root=0)
+    if refused is not None:
+        raise refused
+    try:
         return _run_stepper(*args)
+    finally:
+        if folder is not None:
+            folder.__exit__(None, None, None)
 
 
 def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_every,
