@@ -40,7 +40,7 @@ def box(order, limiter, flux):
 cases = {
     "2d_order2_bj_clamp_traction": block_case(
         divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=2e-7,
-        boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": 0.0}},
+        boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": "2e6*t"}},
                   {"region": "ymax", "traction": ["1e6*t/1e-7", -2e6]}]),
     "2d_order1_central": block_case(divisions=(5, 3), velocity=("10*y", "-3*x"),
                                     end_time=2e-7, order=1, limiter="none",
@@ -61,10 +61,6 @@ for name, case in cases.items():
         a, b = np.asarray(cpu.bodies["block"][key]), np.asarray(gpu.bodies["block"][key])
         err = max(err, float(np.abs(a - b).max() / np.abs(a).max()))
     for key, values in cpu.history.items():
-        if key in ("dissipated_energy", "energy_balance"):
-            # not measured on the device yet: NaN there (docs/architecture.md, "Backends")
-            assert np.isnan(gpu.history[key][1:]).all(), key
-            continue
         a, b = np.asarray(values), np.asarray(gpu.history[key])
         scale = np.abs(a).max()
         if scale > 0:

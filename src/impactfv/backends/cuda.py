@@ -102,6 +102,7 @@ def _make_kernels(d, m, kind):
     from ..scheme import limiters as L
     from ..scheme import riemann as R
     from ..scheme import time as T
+    from ..tensors import cofactor_entry as _cofactor_entry
     from ..tensors import determinant as _determinant
     from ..tensors import symmetric_index as _symmetric_index
 
@@ -109,6 +110,7 @@ def _make_kernels(d, m, kind):
     strain_energy_density = device(M.strain_energy_density)
     min_stretch = device(M.min_stretch)
     determinant = device(_determinant)
+    cofactor_entry = device(_cofactor_entry)
     symmetric_index = device(_symmetric_index)
     face_geometry = device(R.face_geometry)
     face_traction = device(R.face_traction)
@@ -431,6 +433,47 @@ def _make_kernels(d, m, kind):
                     cuda.atomic.add(out, (body, j), part[0, j])
 
     @cuda.jit
+    def energy_rate(v, F, sigma, force, dF, fixed_mask, out):
+        # the CPU's kernels.energy_rate into out[0], and into out[1] the power v . f of the
+        # held velocity components: block sums in shared memory, one atomic per block
+        a = cuda.grid(1)
+        tid = cuda.threadIdx.x
+        part = cuda.shared.array((THREADS, 2), float64)
+        part[tid, 0] = 0.0
+        part[tid, 1] = 0.0
+        if a < v.shape[0]:
+            Fa = cuda.local.array((d, d), float64)
+            for i in range(d):
+                for J in range(d):
+                    Fa[i, J] = F[a, i, J]
+            rate = 0.0
+            held = 0.0
+            for i in range(d):
+                if fixed_mask[a, i]:
+                    held += v[a, i] * force[a, i]
+                else:
+                    rate += v[a, i] * force[a, i]
+            for i in range(d):
+                for J in range(d):
+                    P = 0.0
+                    for k in range(d):
+                        P += sigma[a, i, k] * cofactor_entry(Fa, k, J)
+                    rate += P * dF[a, i, J]
+            part[tid, 0] = rate
+            part[tid, 1] = held
+        cuda.syncthreads()
+        step = THREADS // 2
+        while step > 0:
+            if tid < step:
+                part[tid, 0] += part[tid + step, 0]
+                part[tid, 1] += part[tid + step, 1]
+            cuda.syncthreads()
+            step //= 2
+        if tid == 0:
+            cuda.atomic.add(out, 0, part[0, 0])
+            cuda.atomic.add(out, 1, part[0, 1])
+
+    @cuda.jit
     def gather_rows(force, nodes, out):
         k = cuda.grid(1)
         if k >= nodes.shape[0]:
@@ -441,7 +484,8 @@ def _make_kernels(d, m, kind):
     return types.SimpleNamespace(
         stress_and_fields=stress_and_fields, limited_gradient=limited_gradient,
         zero_rates=zero_rates, interior_fluxes=interior_fluxes,
-        boundary_fluxes=boundary_fluxes, rk_update=rk_update, gather_rows=gather_rows)
+        boundary_fluxes=boundary_fluxes, rk_update=rk_update, gather_rows=gather_rows,
+        energy_rate=energy_rate)
 
 
 def _blocks(count):
@@ -474,6 +518,7 @@ class DeviceState:
         self.arrays["U"] = up(s.U) if self.pack else self.arrays["v"]
         self.loads_up()
         self.power = cuda.device_array(1)
+        self.energy = cuda.device_array(2)
         self.bc_force = cuda.device_array(s.bc_force.shape)
         self.smallest = cuda.device_array(1)
         self.first_bad = cuda.device_array(1, np.int64)
@@ -534,6 +579,14 @@ class DeviceState:
                 float(denominator), A["bc_fixed"], A["face_velocity"], A["face_traction"],
                 s.tangential_correction, A["force"], A["dF"], self.power, self.bc_force)
         power = float(self.power.copy_to_host()[0])
+        # the rate of the energy the rates give, and the power of the forces that the
+        # supports cancel on held components (scheme.stepper: the energy balance)
+        self.energy.copy_to_device(np.zeros(2))
+        k.energy_rate[_blocks(n), THREADS](A["v"], A["F"], A["sigma"], A["force"], A["dF"],
+                                           A["fixed_mask"], self.energy)
+        rate, held_power = self.energy.copy_to_host()
+        self.rate = float(rate)
+        power -= float(held_power)
         bc_force = self.bc_force.copy_to_host()
         held = None
         if s.reaction_rows:

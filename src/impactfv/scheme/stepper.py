@@ -273,13 +273,16 @@ class FVStepper:
         if self.reaction_rows:
             held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
         last = len(STAGES) - 1
+        comps = (self.held_node, self.held_comp)
         for stage, alpha in enumerate(STAGES):
             loads.at(t + (dt if stage else 0.0))
+            if stage == 0 and self.has_supports:
+                held_start = loads.fixed_value[comps].copy()   # the held velocities at t
             if loads.varies:
                 dev.loads_up()
             power, self.bc_force[:], held_force = dev.rates()
             self.stage_power[stage] = power
-            self.stage_dissipation[stage] = np.nan     # not measured on the device yet
+            self.stage_dissipation[stage] = power - dev.rate
             if self.reaction_rows:
                 self.stage_reaction[stage] = self.reaction_mask * (
                     self.bc_force[self.reaction_rows] - held_force)
@@ -295,6 +298,9 @@ class FVStepper:
         self.time = t + dt
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
+        if self.has_supports:
+            self.external_work += 0.5 * float(np.dot(
+                self.mass[self.held_node], loads.fixed_value[comps] ** 2 - held_start ** 2))
         if self.reaction_rows:
             change = (self.reaction_sum @ (self.mass[:, None] * loads.fixed_value) - held) / dt
             self.reaction[:] = 0.5 * (self.stage_reaction[0] + self.stage_reaction[1]) \
