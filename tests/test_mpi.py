@@ -225,6 +225,42 @@ def test_loads_reactions_and_threads_over_ranks(tmp_path):
     assert '"ranks": 2' in summary
 
 
+BLOCKS_3D = """
+title = "two tetrahedral blocks meeting obliquely, one held on a side"
+[run]
+end_time = 1.2e-5
+output_interval = 4.0e-6
+""" + material_toml(COPPER) + """
+[[body]]
+name = "a"
+material = "copper"
+velocity = [30.0, 8.0, -4.0]
+mesh = { generator = "box", origin = [0.0, 0.0, 0.0], size = [0.003, 0.002, 0.002], divisions = [6, 4, 4] }
+[[body.boundary]]
+region = "zmin"
+velocity = { z = 0.0 }
+[[body]]
+name = "b"
+material = "copper"
+velocity = [-30.0, 0.0, 0.0]
+mesh = { generator = "box", origin = [0.00305, 0.0, 0.0], size = [0.003, 0.002, 0.002], divisions = [5, 4, 3] }
+[[contact]]
+bodies = ["a", "b"]
+model = "coulomb"
+friction = 0.3
+"""
+
+
+def test_tetrahedra_on_three_ranks(tmp_path):
+    """3D: two tetrahedral blocks with non-matching meshes meet with friction, one held on a
+    side (a reaction); 3 ranks give the serial run."""
+    serial = run_case(tmp_path, BLOCKS_3D, 1, "serial")
+    assert_same_run(serial, run_case(tmp_path, BLOCKS_3D, 3, "ranks3"), mass=0.1)
+    columns, h = history(serial)
+    assert np.abs(h[:, columns.index("contact0_fx")]).max() > 0
+    assert "reaction_a_zmin_fz" in columns
+
+
 def test_sigterm_checkpoint_and_restart_under_mpi(tmp_path):
     """SIGTERM to mpiexec: every rank stops after the same step, rank 0 writes a checkpoint
     (exit 143); --restart on 2 ranks, and on 3 (the checkpoint holds the global state),

@@ -39,6 +39,12 @@ class ParallelFVStepper(FVStepper):
         shares = comm.allgather(self.part.owned)
         self.gather_counts = np.array([len(s) for s in shares], np.int64)
         self.gather_order = np.concatenate(shares)
+        # the global edge arrays served the partition and the local part: let them go (the
+        # contact, the outputs and the messages keep the nodes' and faces' arrays)
+        self.n_global_edges = G.n_edges
+        for name in ("edges", "C", "C_len", "half", "node_edge_start", "node_neighbour",
+                     "node_C", "node_half", "edge_offsets"):
+            setattr(G, name, None)
 
     def _make_contact(self, case, m):
         contact = GatheredContact(case, self.global_disc, self.part, self.comm,
@@ -155,7 +161,7 @@ class ParallelFVStepper(FVStepper):
 
     def summary(self):
         G = self.global_disc
-        return {"nodes": int(G.n_nodes), "edges": int(G.n_edges), "ranks": self.size}
+        return {"nodes": int(G.n_nodes), "edges": int(self.n_global_edges), "ranks": self.size}
 
     def state_arrays(self):
         arrays = super().state_arrays()
