@@ -26,7 +26,8 @@ def launched_size() -> int:
         if value.isdigit():
             return int(value)
     # srun without PMI variables, or a launcher that gives only the local count
-    if "PMI_RANK" in os.environ or "OMPI_COMM_WORLD_RANK" in os.environ:
+    if any(key in os.environ for key in ("PMI_RANK", "OMPI_COMM_WORLD_RANK", "PMIX_RANK",
+                                         "SLURM_PROCID")):
         for key in SIZE_VARIABLES[3:]:
             value = os.environ.get(key, "")
             if value.isdigit():

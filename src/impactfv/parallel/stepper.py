@@ -47,15 +47,11 @@ class ParallelFVStepper(FVStepper):
             setattr(G, name, None)
 
     def _make_contact(self, case, m):
+        # the gradients' components: of v, and with the upwind geometric flux of the stress
         contact = GatheredContact(case, self.global_disc, self.part, self.comm,
-                                  self.components_for_contact())
+                                  self.grad.shape[1])
         contact.fixed = self.loads.fixed_value
         return contact
-
-    def components_for_contact(self):
-        d = self.disc.dim
-        return d + d * (d + 1) // 2 if self.order == 2 and \
-            self.case.run.geometric_flux == "upwind" else d
 
     # ------------------------------------------------------------------ communication
     def _sum(self, values):
@@ -118,46 +114,11 @@ class ParallelFVStepper(FVStepper):
             f"{bad - body.start} (reference position {G.X[bad].tolist()}); try a smaller "
             "cfl or a finer mesh", step=step, time=t, body=body.name, node=bad - body.start)
 
-    def point_data(self):
-        from ..scheme import kernels as K
-        from ..io.fields import nodal_stress
-
+    def _whole_state(self):
         G = self.global_disc
         v, F, x = (self._global(a) for a in (self.v, self.F, self.x))
-        n = G.n_nodes
-        pressure, von_mises, jac = np.empty(n), np.empty(n), np.empty(n)
-        K.point_fields(F, G.node_material, G.material_table, pressure, von_mises, jac,
-                       self.dim)
-        data = {"velocity": v, "displacement": x - G.X, "pressure": pressure,
-                "von_mises": von_mises,
-                "stress": nodal_stress(F, G.node_material, G.material_table), "J": jac,
-                "body": G.body_of_node.astype(np.int32)}
-        if self.contact is not None:
-            s = self.contact.system
-            data["contact_status"] = s.state.astype(np.int32)
-            data["contact_pressure"] = -s.tstar_n
-        self._gathered = (v, F, x)
-        return data
-
-    def snapshot(self):
-        cells = np.concatenate([b.cells for b in self.global_disc.bodies])
-        return self.global_disc.X, cells, self.point_data()
-
-    def body_fields(self):
-        G = self.global_disc
-        data = self.point_data()
-        _, F, x = self._gathered
-        data.pop("body")
-        out = {}
-        for b in G.bodies:
-            s = slice(b.start, b.stop)
-            fields = {key: np.array(value[s]) for key, value in data.items()}
-            cells = b.cells - b.start
-            fields.update(reference_points=G.X[s].copy(), points=x[s].copy(), cells=cells,
-                          F=F[s].copy())
-            fields["triangles" if G.dim == 2 else "tetrahedra"] = cells
-            out[b.name] = fields
-        return out
+        s = self.contact.system if self.contact is not None else None
+        return (G, v, F, x, None if s is None else s.state, None if s is None else s.tstar_n)
 
     def summary(self):
         G = self.global_disc

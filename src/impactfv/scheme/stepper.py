@@ -406,42 +406,50 @@ class FVStepper:
         return [kinetic, strain, kinetic + strain, *momentum, self.external_work,
                 self.dissipated, balance, *self.reaction.ravel(), *extra]
 
-    def point_data(self) -> dict[str, np.ndarray]:
+    def _whole_state(self):
+        """(discretisation, v, F, x, contact status, contact normal traction) of all nodes:
+        the outputs' view of the state (under MPI gathered from every rank)."""
         self._host()
-        m = self.disc
+        c = self.contact
+        return (self.disc, self.v, self.F, self.x, None if c is None else c.state,
+                None if c is None else c.tstar_n)
+
+    def point_data(self, whole=None) -> dict[str, np.ndarray]:
+        m, v, F, x, status, tstar_n = whole or self._whole_state()
         n = m.n_nodes
         pressure, von_mises, jac = np.empty(n), np.empty(n), np.empty(n)
-        K.point_fields(self.F, m.node_material, m.material_table, pressure, von_mises, jac,
+        K.point_fields(F, m.node_material, m.material_table, pressure, von_mises, jac,
                        self.dim)
-        data = {"velocity": self.v, "displacement": self.x - m.X, "pressure": pressure,
+        data = {"velocity": v, "displacement": x - m.X, "pressure": pressure,
                 "von_mises": von_mises,
-                "stress": nodal_stress(self.F, m.node_material, m.material_table), "J": jac,
+                "stress": nodal_stress(F, m.node_material, m.material_table), "J": jac,
                 "body": m.body_of_node.astype(np.int32)}
-        if self.contact is not None:
-            data["contact_status"] = self.contact.state.astype(np.int32)  # 0 open 1 stick 2 slip
-            data["contact_pressure"] = -self.contact.tstar_n
+        if status is not None:
+            data["contact_status"] = status.astype(np.int32)  # 0 open 1 stick 2 slip
+            data["contact_pressure"] = -tstar_n
         return data
 
     def snapshot(self):
         """(reference points, cells, point data) of all bodies for a ParaView frame."""
-        cells = np.concatenate([b.cells for b in self.disc.bodies])
-        return self.disc.X, cells, self.point_data()
+        whole = self._whole_state()
+        cells = np.concatenate([b.cells for b in whole[0].bodies])
+        return whole[0].X, cells, self.point_data(whole)
 
     def body_fields(self) -> dict[str, dict[str, np.ndarray]]:
         """The point fields of each body (copies), plus its mesh and F."""
-        self._host()
-        m = self.disc
-        data = self.point_data()
+        whole = self._whole_state()
+        m, _, F, x, status, _ = whole
+        data = self.point_data(whole)
         data.pop("body")
         out = {}
         for b in m.bodies:
             s = slice(b.start, b.stop)
             fields = {key: np.array(value[s]) for key, value in data.items()}
-            if "contact_status" in fields:
-                fields["contact_status"] = self.contact.state[s].copy()
+            if status is not None:
+                fields["contact_status"] = status[s].copy()
             cells = b.cells - b.start
-            fields.update(reference_points=m.X[s].copy(), points=self.x[s].copy(),
-                          cells=cells, F=self.F[s].copy())
+            fields.update(reference_points=m.X[s].copy(), points=x[s].copy(),
+                          cells=cells, F=F[s].copy())
             fields["triangles" if m.dim == 2 else "tetrahedra"] = cells
             out[b.name] = fields
         return out
