@@ -237,7 +237,10 @@ def _check(args) -> int:
     case = load_case(args.case, overrides=args.overrides)
     report, problems = check_case(case)
     print("\n".join(printable(line) for line in report.splitlines()))
-    if args.ranks and case.run.method == "fv":
+    if args.ranks and case.run.method != "fv":
+        print(f"partition: run.method = {case.run.method!r} runs on one rank (only the FV "
+              "scheme runs on several)")
+    elif args.ranks:
         from .parallel.partition import partition_report
         from .scheme.discretisation import discretise
         print("\n".join(partition_report(discretise(case), args.ranks)))
