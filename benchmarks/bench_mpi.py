@@ -143,7 +143,8 @@ def network():
     for size, t in figures["one_way_s"].items():
         print(f"  one-way {int(size):>9d} B: {t * 1e6:9.2f} us")
     print(f"  latency {figures['latency_s'] * 1e6:.2f} us, bandwidth "
-          f"{figures['bandwidth_Bps'] / 1e9:.2f} GB/s, allreduce {figures['allreduce_s'] * 1e6:.2f} us")
+          f"{figures['bandwidth_Bps'] / 1e9:.2f} GB/s, "
+          f"allreduce {figures['allreduce_s'] * 1e6:.2f} us")
     return figures
 
 

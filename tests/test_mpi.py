@@ -294,12 +294,14 @@ def test_sigterm_checkpoint_and_restart_under_mpi(tmp_path):
     assert results
 
 
-def test_partition_keeps_every_flux_of_the_owned_nodes():
+def test_partition_keeps_every_flux_of_the_owned_nodes(tmp_path):
     """Each rank's local discretisation: the owned nodes cover the mesh once, every edge is
     kept by the ranks of its two ends and its fluxes reach its owned ends, and the ghosts are
     exactly the nodes an owned node's fluxes need."""
     from impactfv.parallel.partition import local_part, partition_nodes
-    disc = discretise(load_case(_write(BARS)))
+    case = tmp_path / "bars.toml"
+    case.write_text(BARS)
+    disc = discretise(load_case(case))
     parts = partition_nodes(disc, 3)
     owned = np.zeros(disc.n_nodes, int)
     kept = np.zeros(disc.n_edges, int)
@@ -320,13 +322,6 @@ def test_partition_keeps_every_flux_of_the_owned_nodes():
     assert np.all(owned == 1)
     ends_on = np.array([len({parts[a], parts[b]}) for a, b in disc.edges])
     assert np.array_equal(kept, ends_on)
-
-
-def _write(text):
-    import tempfile
-    path = Path(tempfile.mkdtemp()) / "case.toml"
-    path.write_text(text)
-    return path
 
 
 def test_check_reports_the_partition(tmp_path):

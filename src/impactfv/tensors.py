@@ -28,6 +28,20 @@ def cofactor_entry(F, i, J):
     return F[i1, J1] * F[i2, J2] - F[i1, J2] * F[i2, J1]
 
 
+def stress_power(sigma, F, D):
+    """P : D with the first Piola stress P = sigma cof F (sigma the Cauchy stress): the
+    strain power of a deformation-gradient rate D (the energy balance, docs/theory.md)."""
+    d = F.shape[0]
+    power = 0.0
+    for i in range(d):
+        for J in range(d):
+            P = 0.0
+            for k in range(d):
+                P += sigma[i, k] * cofactor_entry(F, k, J)
+            power += P * D[i, J]
+    return power
+
+
 def cofactor_times(F, N, out):
     """out = cof(F) N: Nanson's formula, da n = cof(F) dA N."""
     if F.shape[0] == 2:

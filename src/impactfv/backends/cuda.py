@@ -102,15 +102,15 @@ def _make_kernels(d, m, kind):
     from ..scheme import limiters as L
     from ..scheme import riemann as R
     from ..scheme import time as T
-    from ..tensors import cofactor_entry as _cofactor_entry
     from ..tensors import determinant as _determinant
+    from ..tensors import stress_power as _stress_power
     from ..tensors import symmetric_index as _symmetric_index
 
     cauchy_stress = device(M.cauchy_stress)
     strain_energy_density = device(M.strain_energy_density)
     min_stretch = device(M.min_stretch)
     determinant = device(_determinant)
-    cofactor_entry = device(_cofactor_entry)
+    stress_power = device(_stress_power)
     symmetric_index = device(_symmetric_index)
     face_geometry = device(R.face_geometry)
     face_traction = device(R.face_traction)
@@ -443,9 +443,13 @@ def _make_kernels(d, m, kind):
         part[tid, 1] = 0.0
         if a < v.shape[0]:
             Fa = cuda.local.array((d, d), float64)
+            Sa = cuda.local.array((d, d), float64)
+            Da = cuda.local.array((d, d), float64)
             for i in range(d):
                 for J in range(d):
                     Fa[i, J] = F[a, i, J]
+                    Sa[i, J] = sigma[a, i, J]
+                    Da[i, J] = dF[a, i, J]
             rate = 0.0
             held = 0.0
             for i in range(d):
@@ -453,13 +457,7 @@ def _make_kernels(d, m, kind):
                     held += v[a, i] * force[a, i]
                 else:
                     rate += v[a, i] * force[a, i]
-            for i in range(d):
-                for J in range(d):
-                    P = 0.0
-                    for k in range(d):
-                        P += sigma[a, i, k] * cofactor_entry(Fa, k, J)
-                    rate += P * dF[a, i, J]
-            part[tid, 0] = rate
+            part[tid, 0] = rate + stress_power(Sa, Fa, Da)
             part[tid, 1] = held
         cuda.syncthreads()
         step = THREADS // 2

@@ -19,8 +19,8 @@ from numba import njit, prange
 from .. import materials as M
 from ..backends.cpu import (load_matrix, load_vector, local_components, local_matrix,
                             local_rows, local_vector, point, store_matrix)
-from ..tensors import cofactor_entry as _cofactor_entry
 from ..tensors import determinant as _determinant
+from ..tensors import stress_power as _stress_power
 from ..tensors import symmetric_index as _symmetric_index
 from . import limiters as L
 from . import riemann as R
@@ -31,7 +31,7 @@ strain_energy_density = point(M.strain_energy_density)
 pressure_and_von_mises = point(M.pressure_and_von_mises)
 min_stretch = point(M.min_stretch)
 determinant = point(_determinant)
-cofactor_entry = point(_cofactor_entry)
+stress_power = point(_stress_power)
 symmetric_index = point(_symmetric_index)
 spatial_normal = point(R.spatial_normal)
 face_geometry = point(R.face_geometry)
@@ -379,14 +379,12 @@ def energy_rate(v, force, F, sigma, dF, fixed_mask, dim):
             if not fixed_mask[a, i]:
                 rate += v[a, i] * force[a, i]
         Fa = local_matrix(d)
+        Sa = local_matrix(d)
+        Da = local_matrix(d)
         load_matrix(F, a, Fa)
-        for i in range(d):
-            for J in range(d):
-                P = 0.0
-                for k in range(d):
-                    P += sigma[a, i, k] * cofactor_entry(Fa, k, J)
-                rate += P * dF[a, i, J]
-        total += rate
+        load_matrix(sigma, a, Sa)
+        load_matrix(dF, a, Da)
+        total += rate + stress_power(Sa, Fa, Da)
     return total
 
 

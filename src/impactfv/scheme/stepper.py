@@ -84,7 +84,7 @@ class FVStepper:
         self.dissipated = 0.0
         # the strongly held velocity components (owned nodes): the support's work there is
         # the kinetic energy it gives them minus the power of the force it cancels
-        self.held_node, self.held_comp = np.nonzero(m.fixed_mask[:self.n_owned])
+        self.held = np.nonzero(m.fixed_mask[:self.n_owned])      # (nodes, components)
         self.has_supports = bool(m.bc_fixed.any())      # the same on every rank
         self._reactions_setup()
         if case.contacts:
@@ -159,7 +159,7 @@ class FVStepper:
             base = names[k - 1]
             seen[base] = seen.get(base, 0) + 1
             self.reaction_names.append(base if seen[base] == 1 else f"{base}{seen[base]}")
-        n, d = m.n_nodes, m.dim
+        d = m.dim
         if self.reaction_rows:
             cols = [m.bc_nodes[k][m.bc_nodes[k] < owned] for k in self.reaction_rows]
             self.reaction_sum = sp.csr_matrix(
@@ -211,8 +211,7 @@ class FVStepper:
         if self.has_supports:
             # the power of the support's cancelling of the force on held components (the
             # kinetic energy it gives them is added at the end of the step)
-            comps = (self.held_node, self.held_comp)
-            power -= float(np.dot(self.force[comps], self.v[comps]))
+            power -= float(np.dot(self.force[self.held], self.v[self.held]))
         rate = K.energy_rate(self.v[:o], self.force[:o], self.F[:o], self.sigma[:o],
                              self.dF[:o], m.fixed_mask[:o], self.dim)
         sums = np.array([power, rate])
@@ -273,11 +272,10 @@ class FVStepper:
         if self.reaction_rows:
             held = self.reaction_sum @ (self.mass[:, None] * loads.fixed_value)
         last = len(STAGES) - 1
-        comps = (self.held_node, self.held_comp)
         for stage, alpha in enumerate(STAGES):
             loads.at(t + (dt if stage else 0.0))
             if stage == 0 and self.has_supports:
-                held_start = loads.fixed_value[comps].copy()   # the held velocities at t
+                held_start = loads.fixed_value[self.held]   # the held velocities at t
             if loads.varies:
                 dev.loads_up()
             power, self.bc_force[:], held_force = dev.rates()
@@ -300,7 +298,7 @@ class FVStepper:
         self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
         if self.has_supports:
             self.external_work += 0.5 * float(np.dot(
-                self.mass[self.held_node], loads.fixed_value[comps] ** 2 - held_start ** 2))
+                self.mass[self.held[0]], loads.fixed_value[self.held] ** 2 - held_start ** 2))
         if self.reaction_rows:
             change = (self.reaction_sum @ (self.mass[:, None] * loads.fixed_value) - held) / dt
             self.reaction[:] = 0.5 * (self.stage_reaction[0] + self.stage_reaction[1]) \
@@ -349,9 +347,8 @@ class FVStepper:
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
         if self.has_supports:
-            comps = (self.held_node, self.held_comp)
             self.external_work += self._sum(0.5 * float(np.dot(
-                self.mass[self.held_node], self.v[comps] ** 2 - self.v0[comps] ** 2)))
+                self.mass[self.held[0]], self.v[self.held] ** 2 - self.v0[self.held] ** 2)))
         if self.reaction_rows:
             # Runge-Kutta mean of the stages, plus the force that changes the momentum of
             # the held nodes when the prescribed velocity changes
