@@ -366,38 +366,39 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     power[0] = boundary_power
 
 
-@njit(cache=True, parallel=True)
-def energy_rate(v, force, F, sigma, dF, fixed_mask, dim):
-    """The rate of the kinetic and strain energy of the nodes as their rates give it:
-    sum of v . f over the velocity components that are not held, plus P : Omega dF/dt with
-    the first Piola stress P = sigma cof F (docs/theory.md, "Energy balance")."""
-    d = len(dim)
-    total = 0.0
-    for a in prange(v.shape[0]):
-        rate = 0.0
-        for i in range(d):
-            if not fixed_mask[a, i]:
-                rate += v[a, i] * force[a, i]
-        Fa = local_matrix(d)
-        Sa = local_matrix(d)
-        Da = local_matrix(d)
-        load_matrix(F, a, Fa)
-        load_matrix(sigma, a, Sa)
-        load_matrix(dF, a, Da)
-        total += rate + stress_power(Sa, Fa, Da)
-    return total
+@njit(cache=True)
+def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d):
+    """The rate of the kinetic and strain energy of node a as its rates give it: v . f over
+    the velocity components that are not held, plus P : Omega dF/dt with the first Piola
+    stress P = sigma cof F (docs/theory.md, "Energy balance"). Read before the node's state
+    is updated, so that the Runge-Kutta update gives it in the same pass."""
+    rate = 0.0
+    for i in range(d):
+        if not fixed_mask[a, i]:
+            rate += v[a, i] * force[a, i]
+    Fa = local_matrix(d)
+    Sa = local_matrix(d)
+    Da = local_matrix(d)
+    load_matrix(F, a, Fa)
+    load_matrix(sigma, a, Sa)
+    load_matrix(dF, a, Da)
+    return rate + stress_power(Sa, Fa, Da)
 
 
 @njit(cache=True, parallel=True)
-def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_xdot,
-              node_material, table, volume, fixed_mask, fixed_value, dim):
+def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
+              contact_xdot, node_material, table, volume, fixed_mask, fixed_value, dim):
     """One Runge-Kutta stage for v, F and x at every node (scheme.time.rk_stage).
 
     Positions move with the nodal velocity, or at contact nodes with their contact velocity;
-    prescribed velocity components are imposed strongly.
+    prescribed velocity components are imposed strongly. Returns the rate of the nodes'
+    kinetic and strain energy in the stage's state (sigma: its Cauchy stress), summed while
+    the node is read for its update.
     """
     d = len(dim)
+    total = 0.0
     for a in prange(v.shape[0]):
+        total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d)
         inv_volume = 1.0 / volume[a]
         inv_mass = inv_volume / table[node_material[a], RHO]
         in_contact = contact_state[a] != 0
@@ -412,24 +413,27 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_
             for J in range(d):
                 F[a, i, J] = rk_stage(alpha, F0[a, i, J], F[a, i, J], dt,
                                       dF[a, i, J] * inv_volume)
+    return total
 
 
 @njit(cache=True, parallel=True)
-def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_xdot,
-                   node_material, table, volume, fixed_mask, fixed_value, node_length,
-                   body_start, with_monitors, out, dim):
+def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
+                   contact_xdot, node_material, table, volume, fixed_mask, fixed_value,
+                   node_length, body_start, with_monitors, out, dim):
     """The last Runge-Kutta stage (as :func:`rk_update`) fused with what the time loop needs
     of the new state, computed while it is still in registers: the stable time step of the
     next step (as :func:`stable_time_step`), the first node with a non-finite state or
     J <= 0 (as :func:`state_is_bad`) and, with ``with_monitors``, the energies and momentum
     of each body into ``out`` (as :func:`monitors`, summed in the same order).
 
-    Returns (min over nodes of h_a lambda_min,a / c_p,a, index of the first bad node or -1).
+    Returns (min over nodes of h_a lambda_min,a / c_p,a, index of the first bad node or -1,
+    the energy rate of the stage's state as :func:`rk_update` returns it).
     """
     d = len(dim)
     n = v.shape[0]
     smallest = np.inf
     first_bad = n
+    total = 0.0
     for k in range(body_start.shape[0] - 1):
         kinetic = 0.0
         strain = 0.0
@@ -437,6 +441,7 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, con
         p1 = 0.0
         p2 = 0.0
         for a in prange(body_start[k], body_start[k + 1]):
+            total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d)
             props = table[node_material[a]]
             inv_volume = 1.0 / volume[a]
             inv_mass = inv_volume / props[RHO]
@@ -480,7 +485,7 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, con
             out[k, 3] = p1
             if d == 3:
                 out[k, 4] = p2
-    return smallest, (first_bad if first_bad < n else -1)
+    return smallest, (first_bad if first_bad < n else -1), total
 
 
 @njit(cache=True, parallel=True)

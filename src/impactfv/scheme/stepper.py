@@ -212,16 +212,19 @@ class FVStepper:
             # the power of the support's cancelling of the force on held components (the
             # kinetic energy it gives them is added at the end of the step)
             power -= float(np.dot(self.force[self.held], self.v[self.held]))
-        rate = K.energy_rate(self.v[:o], self.force[:o], self.F[:o], self.sigma[:o],
-                             self.dF[:o], m.fixed_mask[:o], self.dim)
-        sums = np.array([power, rate])
+        # the stage's energy rate is summed by its Runge-Kutta update (_close_stage)
+        self._stage_sums = [power]
         if self.reaction_rows:
             # the support acts through the Riemann tractions of its faces and, where the
             # prescribed components are imposed on the nodes, by cancelling what is left
-            reaction = self.reaction_mask * (self.bc_force[self.reaction_rows]
-                                             - self.reaction_sum @ self.force[:o])
-            sums = np.concatenate([sums, reaction.ravel()])
-        sums = self._sum(sums)          # over ranks: one reduction per stage
+            self._stage_sums.append(self.reaction_mask * (self.bc_force[self.reaction_rows]
+                                                          - self.reaction_sum @ self.force[:o]))
+
+    def _close_stage(self, stage: int, rate: float):
+        """The stage's power, dissipation and reactions from what rates() left and the energy
+        rate its Runge-Kutta update summed: one reduction over ranks per stage."""
+        power, *reaction = self._stage_sums
+        sums = self._sum(np.concatenate([[power, rate], *(r.ravel() for r in reaction)]))
         power, rate = float(sums[0]), float(sums[1])
         if self.reaction_rows:
             self.stage_reaction[stage] = sums[2:].reshape(self.stage_reaction[stage].shape)
@@ -327,19 +330,21 @@ class FVStepper:
             loads.at(t + dt)
             # the owned nodes (all of them in a serial run)
             nodal = tuple(a[:o] for a in (self.v0, self.F0, self.x0, self.v, self.F, self.x,
-                                          self.force, self.dF, self.contact_state,
+                                          self.force, self.dF, self.sigma, self.contact_state,
                                           self.contact_xdot, m.node_material))
             node_data = tuple(a[:o] for a in (m.volume, m.fixed_mask, loads.fixed_value))
             if stage < last:
-                K.rk_update(alpha, dt, *nodal, m.material_table, *node_data, self.dim)
+                rate = K.rk_update(alpha, dt, *nodal, m.material_table, *node_data, self.dim)
                 self._begin_state_exchange()
+                self._close_stage(stage, rate)
                 continue
             # the last stage also gives the next time step, the state check and (when a
             # history row follows) the monitors, in the same pass over the nodes
-            smallest, bad = K.rk_update_last(
+            smallest, bad, rate = K.rk_update_last(
                 alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
                 m.body_start, bool(self.history_due), self.monitor_buf, self.dim)
             self._begin_state_exchange()
+            self._close_stage(stage, rate)
             self._next_dt = self.cfl * self._min(smallest)
             self._bad = self._first_bad(bad)
             self._monitors_fresh = bool(self.history_due)
