@@ -251,7 +251,9 @@ def wall_faces(a, n, x, X, face_start, face_list, bface_others, bface_C, faces, 
     """Dual boundary faces of node a that face the wall (the normal n points into it):
     appended to ``faces``; returns (new count, the total size of their projections on the
     wall plane). A face meeting the wall at an angle carries the wall traction on its
-    projection."""
+    projection. Facing, as in search.closest_facet, means not only by round-off: the side
+    of a block that meets the wall at a right angle stays a free side (a projection of
+    round-off size, of either sign, would otherwise take its free flux off for the step)."""
     d = x.shape[1]
     f = local_vector(d)
     total = 0.0
@@ -259,9 +261,11 @@ def wall_faces(a, n, x, X, face_start, face_list, bface_others, bface_C, faces, 
         face = face_list[k]
         dual_face_vector(x, X, a, bface_others[face], bface_C[face], f)
         projected = 0.0
+        size = 0.0
         for j in range(d):
             projected += f[j] * n[j]
-        if projected > 0.0:
+            size += f[j] * f[j]
+        if projected > 1e-12 * math.sqrt(size):
             total += projected
             faces[count] = face
             count += 1
