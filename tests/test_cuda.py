@@ -3,6 +3,13 @@
 The simulator (NUMBA_ENABLE_CUDASIM=1, set before numba.cuda is imported, hence the
 subprocesses) runs the same kernels thread by thread in Python, so the cases are tiny. The
 comparisons skip when numba-cuda is not installed; the refusals are checked either way.
+
+The two backends round differently (the CPU kernels contract a * b + c into fused
+multiply-adds, the simulator does not; a GPU contracts on its own), so the 1e-10 relative
+agreement is asked of quantities the state determines to better than that: the cases strain
+by about 1e-3 (at a strain e, stress and strain energy are known from F ~ I only to round-off
+divided by e, relative), and an energy column, which may be round-off about zero (the
+external work of a free body), is compared relative to the energy the bodies hold.
 """
 
 import importlib.util
@@ -32,7 +39,7 @@ def box(order, limiter, flux):
             "material": [{"name": "soft", "model": "neo_hookean", "density": 1000.0,
                           "youngs_modulus": 1e6, "poisson_ratio": 0.45}],
             "body": [{"name": "block", "material": "soft",
-                      "velocity": ["3*sin(90*x)", "2*cos(80*y)", "z"],
+                      "velocity": ["300*sin(90*x)", "200*cos(80*y)", "100*z"],
                       "mesh": {"generator": "box", "origin": [0.0, 0.0, 0.0],
                                "size": [0.01, 0.01, 0.01], "divisions": [2, 2, 2]},
                       "boundary": [{"region": "zmin", "velocity": {"z": 0.0}}]}]}
@@ -42,11 +49,13 @@ cases = {
         divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=2e-7,
         boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": "2e6*t"}},
                   {"region": "ymax", "traction": ["1e6*t/1e-7", -2e6]}]),
-    "2d_order1_central": block_case(divisions=(5, 3), velocity=("10*y", "-3*x"),
+    "2d_order1_central": block_case(divisions=(5, 3), velocity=("5e3*y", "-2e3*x"),
                                     end_time=2e-7, order=1, limiter="none",
                                     geometric_flux="central"),
     "3d_order2_venkatakrishnan": box(2, "venkatakrishnan", "upwind"),
 }
+ENERGIES = {"kinetic_energy", "strain_energy", "total_energy", "external_work",
+            "dissipated_energy", "energy_balance"}
 worst = {}
 for name, case in cases.items():
     results = {}
@@ -60,9 +69,10 @@ for name, case in cases.items():
     for key in ("velocity", "points", "pressure", "F", "stress"):
         a, b = np.asarray(cpu.bodies["block"][key]), np.asarray(gpu.bodies["block"][key])
         err = max(err, float(np.abs(a - b).max() / np.abs(a).max()))
+    energy_scale = np.abs(cpu.history["total_energy"]).max()
     for key, values in cpu.history.items():
         a, b = np.asarray(values), np.asarray(gpu.history[key])
-        scale = np.abs(a).max()
+        scale = energy_scale if key in ENERGIES else np.abs(a).max()
         if scale > 0:
             err = max(err, float(np.abs(a - b).max() / scale))
     worst[name] = err

@@ -214,11 +214,15 @@ def test_loads_reactions_and_threads_over_ranks(tmp_path):
     threads per rank too (no contact: the edge blocks change only the summation order)."""
     serial = run_case(tmp_path, PULLED, 1, "serial")
     assert_same_run(serial, run_case(tmp_path, PULLED, 2, "ranks2"), mass=0.089)
-    # two threads per rank split the edges into blocks, which changes the order of the sums:
-    # where the limiter's choice is decided by round-off the results part at 1e-6 (a serial
-    # run on 2 threads against 1 thread differs as much: measured 1.1e-6, ranks 4.7e-6)
-    assert_same_run(serial, run_case(tmp_path, PULLED, 2, "threads", "--threads", "2"),
-                    mass=0.089, rtol=2e-5)
+    # two threads per rank split the edges into blocks, which changes the order of the sums;
+    # in this run such round-off differences grow by about 20% a step where the limiter's
+    # choice switches (a serial run, 1 against 2 threads: 3e-12 of the velocity at 16 us,
+    # 3e-9 at 29 us, 1e-4 at 40 us, with or without fused multiply-adds), so the threads
+    # are compared over the first 30 us (measured: 2.3e-7 of the largest reaction)
+    short = PULLED.replace("end_time = 4.0e-5", "end_time = 3.0e-5")
+    assert_same_run(run_case(tmp_path, short, 1, "serial_short"),
+                    run_case(tmp_path, short, 2, "threads", "--threads", "2"),
+                    mass=0.089, rtol=2e-6)
     columns, h = history(serial)
     assert np.abs(h[:, columns.index("reaction_xmin_fx")]).max() > 0
     summary = (tmp_path / "ranks2" / "summary.json").read_text()

@@ -27,6 +27,13 @@ from numba.extending import intrinsic
 #: largest space dimension; local arrays are sized for it
 MAX_DIM = 3
 
+#: LLVM flags of the scheme's kernels: only contraction of a * b + c into one fused
+#: multiply-add (rounded once instead of twice) where the CPU has FMA; no reassociation,
+#: no assumptions about NaN or infinity, so the sums keep their order and a bad state is
+#: still seen. It makes the gradient and flux loops about 15% faster; results change at
+#: round-off only (a GPU contracts the same way by default).
+KERNEL_FASTMATH = {"contract"}
+
 
 def dim_tag(dim: int) -> tuple:
     """The ``dim`` argument of the kernels: a tuple of ``dim`` zeros."""

@@ -17,7 +17,7 @@ import numpy as np
 from numba import njit, prange
 
 from .. import materials as M
-from ..backends.cpu import (load_matrix, load_vector, local_components, local_matrix,
+from ..backends.cpu import (KERNEL_FASTMATH, load_matrix, load_vector, local_components, local_matrix,
                             local_rows, local_vector, point, store_matrix)
 from ..tensors import determinant as _determinant
 from ..tensors import stress_power as _stress_power
@@ -47,7 +47,7 @@ rk_stage = point(T.rk_stage)
 RHO, CP, CS = M.RHO, M.CP, M.CS
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def compute_stress(F, node_material, table, sigma, dim):
     """Cauchy stress sigma_a = sigma(F_a) at every node (the material law)."""
     d = len(dim)
@@ -59,7 +59,7 @@ def compute_stress(F, node_material, table, sigma, dim):
         store_matrix(sa, sigma, a)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def stress_and_fields(F, v, node_material, table, sigma, U, dim):
     """:func:`compute_stress` and :func:`pack_velocity_and_stress` in one pass: sigma_a,
     and U[a] = (v_a, the independent components of sigma_a) while sigma_a is in registers."""
@@ -76,7 +76,7 @@ def stress_and_fields(F, v, node_material, table, sigma, U, dim):
                 U[a, d + symmetric_index(i, j, d)] = sa[i, j]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def pack_velocity_and_stress(v, sigma, U, dim):
     """U[a] = (v_a, the independent components of sigma_a): the fields reconstructed to the
     faces."""
@@ -88,7 +88,7 @@ def pack_velocity_and_stress(v, sigma, U, dim):
                 U[a, d + symmetric_index(i, j, d)] = sigma[a, i, j]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bface_start,
                      bface_others, bface_C, closure, volume, kind, grad, dim, components):
     """Limited Green-Gauss nodal gradient grad[a, i, J] of every component i of the nodal
@@ -176,7 +176,7 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                 grad[a, i, J] = g[i, J] * phi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _reconstruct_stress(sigma, grad, a, sign, e, half, stress_reconstructed, S, d):
     """S = sigma_a, reconstructed to the midpoint of edge e (sign +1 from its first node,
     -1 from its second) when the stress is reconstructed."""
@@ -193,7 +193,7 @@ def _reconstruct_stress(sigma, grad, a, sign, e, half, stress_reconstructed, S, 
             S[j, i] = s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                use_reconstruction, stress_reconstructed, upwind_geometric, force, dF, d, Fe,
                Sa, Sb, work):
@@ -252,7 +252,7 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
             dF[b, i, J] -= u[i] * C[e, J]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                      edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
                      force, dF, d):
@@ -266,7 +266,7 @@ def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len
                    Sa, Sb, work)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                    edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
                    prescribed_velocity, prescribed_traction, use_reconstruction,
@@ -366,7 +366,7 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     power[0] = boundary_power
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
 def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d):
     """The rate of the kinetic and strain energy of node a as its rates give it: v . f over
     the velocity components that are not held, plus P : Omega dF/dt with the first Piola
@@ -385,7 +385,7 @@ def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d):
     return rate + stress_power(Sa, Fa, Da)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
               contact_xdot, node_material, table, volume, fixed_mask, fixed_value, dim):
     """One Runge-Kutta stage for v, F and x at every node (scheme.time.rk_stage).
@@ -416,7 +416,7 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
     return total
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
                    contact_xdot, node_material, table, volume, fixed_mask, fixed_value,
                    node_length, body_start, with_monitors, out, dim):
@@ -488,7 +488,7 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
     return smallest, (first_bad if first_bad < n else -1), total
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def stable_time_step(F, node_material, table, node_length, dim):
     """min over nodes of h_a lambda_min,a / c_p,a; multiply by the CFL number."""
     d = len(dim)
@@ -501,7 +501,7 @@ def stable_time_step(F, node_material, table, node_length, dim):
     return local.min()
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def monitors(v, F, node_material, table, volume, body_start, out, dim):
     """Per body k (nodes body_start[k]:body_start[k+1]), into row k of ``out``: kinetic
     energy, strain energy and the d components of linear momentum."""
@@ -534,7 +534,7 @@ def monitors(v, F, node_material, table, volume, body_start, out, dim):
             out[k, 4] = p2
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def state_is_bad(v, F, dim):
     """Index of the first node with a non-finite state or J <= 0, or -1."""
     d = len(dim)
@@ -554,7 +554,7 @@ def state_is_bad(v, F, dim):
     return -1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def point_fields(F, node_material, table, pressure, von_mises, jac, dim):
     """Pressure (compression positive), von Mises stress and J at every node."""
     d = len(dim)
