@@ -137,10 +137,13 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                 for J in range(d):
                     g[i, J] += face * bface_C[h, J]
         inv = 1.0 / volume[a]
-        for i in range(m):
-            for J in range(d):
-                g[i, J] = g[i, J] * inv
-        if kind == L.BARTH_JESPERSEN:
+        if kind == L.NONE:
+            for i in range(m):
+                for J in range(d):
+                    grad[a, i, J] = g[i, J] * inv
+        elif kind == L.BARTH_JESPERSEN:
+            # the largest rise and fall of the midpoint values over the node's edges, from the
+            # unscaled sums (a factor Omega_a on every change; scaled once per component)
             rise = local_components(m)
             fall = local_components(m)
             for i in range(m):
@@ -153,27 +156,37 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                         change += g[i, J] * node_half[k, J]
                     rise[i] = max(rise[i], change)
                     fall[i] = min(fall[i], change)
-        for i in range(m):
-            phi = 1.0
-            if kind != L.NONE:
+            for i in range(m):
                 u = v[a, i]
                 # a change below 1e-10 of the local range needs no limiting; without this
                 # tolerance a round-off sized change at an extremum would switch phi to 0
                 tolerance = 1e-10 * (hi[i] - lo[i])
-                if kind == L.BARTH_JESPERSEN:
-                    if rise[i] > tolerance:
-                        phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], rise[i]))
-                    if fall[i] < -tolerance:
-                        phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], fall[i]))
-                else:
-                    for k in range(node_edge_start[a], node_edge_start[a + 1]):
-                        change = 0.0
-                        for J in range(d):
-                            change += g[i, J] * node_half[k, J]
-                        if abs(change) > tolerance:
-                            phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], change))
-            for J in range(d):
-                grad[a, i, J] = g[i, J] * phi
+                phi = 1.0
+                up = rise[i] * inv
+                if up > tolerance:
+                    phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], up))
+                down = fall[i] * inv
+                if down < -tolerance:
+                    phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], down))
+                scale = phi * inv
+                for J in range(d):
+                    grad[a, i, J] = g[i, J] * scale
+        else:
+            for i in range(m):
+                for J in range(d):
+                    g[i, J] = g[i, J] * inv
+            for i in range(m):
+                u = v[a, i]
+                tolerance = 1e-10 * (hi[i] - lo[i])
+                phi = 1.0
+                for k in range(node_edge_start[a], node_edge_start[a + 1]):
+                    change = 0.0
+                    for J in range(d):
+                        change += g[i, J] * node_half[k, J]
+                    if abs(change) > tolerance:
+                        phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], change))
+                for J in range(d):
+                    grad[a, i, J] = g[i, J] * phi
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
