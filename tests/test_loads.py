@@ -175,7 +175,9 @@ def test_block_resting_on_a_wall_settles_to_the_hydrostatic_pressure():
 
 def test_a_moving_wall_is_the_same_as_a_moving_block():
     """Galilean invariance: a wall approaching a block at rest at 10 m/s gives the contact
-    force history of the block flying at 10 m/s onto a wall at rest."""
+    force history of the block flying at 10 m/s onto a wall at rest (measured 1e-13 of the
+    force; 9e-4 when the block's lateral sides, at right angles to the wall, were taken for
+    contact faces or not by the sign of a round-off projection)."""
     def case(v_block, v_wall):
         return {"run": {"end_time": 1.2e-5},
                 "material": [dict(COPPER_03)],
@@ -190,7 +192,7 @@ def test_a_moving_wall_is_the_same_as_a_moving_block():
     b = run(load_case(case(0.0, -10.0))).history
     reference = COPPER_03["density"] * Material.from_entry(COPPER_03).p_wave_speed * 10 * 0.001
     assert np.abs(a["contact0_fx"]).max() > 0.5 * reference
-    assert np.allclose(a["contact0_fx"], b["contact0_fx"], rtol=0, atol=1e-6 * reference)
+    assert np.allclose(a["contact0_fx"], b["contact0_fx"], rtol=0, atol=1e-10 * reference)
     # the moving wall does work on the block; the block at rest gains it
     assert b["external_work"][-1] > 0.1 * b["total_energy"][-1]
     assert abs(a["external_work"][-1]) < 1e-12 * a["total_energy"][0]
