@@ -7,9 +7,10 @@ comparisons skip when numba-cuda is not installed; the refusals are checked eith
 The two backends round differently (the CPU kernels contract a * b + c into fused
 multiply-adds, the simulator does not; a GPU contracts on its own), so the 1e-10 relative
 agreement is asked of quantities the state determines to better than that: the cases strain
-by about 1e-3 (at a strain e, stress and strain energy are known from F ~ I only to round-off
-divided by e, relative), and an energy column, which may be round-off about zero (the
-external work of a free body), is compared relative to the energy the bodies hold.
+by 1e-3 to 1e-2 (at a strain e the stress is known from F ~ I only to round-off / e and the
+strain energy to round-off / e^2, relative), and the columns that are round-off about zero
+(the external work of a free body, the energy balance) are compared relative to the energy
+the bodies hold; every other column on its own scale.
 """
 
 import importlib.util
@@ -49,13 +50,12 @@ cases = {
         divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=2e-7,
         boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": "2e6*t"}},
                   {"region": "ymax", "traction": ["1e6*t/1e-7", -2e6]}]),
-    "2d_order1_central": block_case(divisions=(5, 3), velocity=("5e3*y", "-2e3*x"),
+    "2d_order1_central": block_case(divisions=(5, 3), velocity=("5e4*y", "-2e4*x"),
                                     end_time=2e-7, order=1, limiter="none",
                                     geometric_flux="central"),
     "3d_order2_venkatakrishnan": box(2, "venkatakrishnan", "upwind"),
 }
-ENERGIES = {"kinetic_energy", "strain_energy", "total_energy", "external_work",
-            "dissipated_energy", "energy_balance"}
+ABOUT_ZERO = {"external_work", "energy_balance"}     # compared on the energy scale
 worst = {}
 for name, case in cases.items():
     results = {}
@@ -72,7 +72,7 @@ for name, case in cases.items():
     energy_scale = np.abs(cpu.history["total_energy"]).max()
     for key, values in cpu.history.items():
         a, b = np.asarray(values), np.asarray(gpu.history[key])
-        scale = energy_scale if key in ENERGIES else np.abs(a).max()
+        scale = energy_scale if key in ABOUT_ZERO else np.abs(a).max()
         if scale > 0:
             err = max(err, float(np.abs(a - b).max() / scale))
     worst[name] = err

@@ -30,8 +30,9 @@ MAX_DIM = 3
 #: LLVM flags of the scheme's kernels: only contraction of a * b + c into one fused
 #: multiply-add (rounded once instead of twice) where the CPU has FMA; no reassociation,
 #: no assumptions about NaN or infinity, so the sums keep their order and a bad state is
-#: still seen. It makes the gradient and flux loops about 15% faster; results change at
-#: round-off only (a GPU contracts the same way by default).
+#: still seen. It makes the gradient and flux loops faster (docs/performance.md); results
+#: change at round-off only (a GPU contracts the same way by default). numba's cache does
+#: not see a change of these flags: clear the __pycache__ folders after changing them.
 KERNEL_FASTMATH = {"contract"}
 
 

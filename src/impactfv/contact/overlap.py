@@ -259,13 +259,11 @@ def wall_faces(a, n, x, X, face_start, face_list, bface_others, bface_C, faces, 
     total = 0.0
     for k in range(face_start[a], face_start[a + 1]):
         face = face_list[k]
-        dual_face_vector(x, X, a, bface_others[face], bface_C[face], f)
+        size = dual_face_vector(x, X, a, bface_others[face], bface_C[face], f)
         projected = 0.0
-        size = 0.0
         for j in range(d):
             projected += f[j] * n[j]
-            size += f[j] * f[j]
-        if projected > 1e-12 * math.sqrt(size):
+        if projected > 1e-12 * size:
             total += projected
             faces[count] = face
             count += 1

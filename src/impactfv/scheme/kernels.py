@@ -379,7 +379,7 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     power[0] = boundary_power
 
 
-@njit(cache=True, fastmath=KERNEL_FASTMATH)
+@njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d):
     """The rate of the kinetic and strain energy of node a as its rates give it: v . f over
     the velocity components that are not held, plus P : Omega dF/dt with the first Piola

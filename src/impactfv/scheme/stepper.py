@@ -212,7 +212,8 @@ class FVStepper:
             # the power of the support's cancelling of the force on held components (the
             # kinetic energy it gives them is added at the end of the step)
             power -= float(np.dot(self.force[self.held], self.v[self.held]))
-        # the stage's energy rate is summed by its Runge-Kutta update (_close_stage)
+        # the stage's energy rate is summed by its Runge-Kutta update and reduced with these
+        # in _close_stage
         self._stage_sums = [power]
         if self.reaction_rows:
             # the support acts through the Riemann tractions of its faces and, where the
