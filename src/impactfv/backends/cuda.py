@@ -435,8 +435,8 @@ def _make_kernels(d, m, kind):
     @cuda.jit
     def energy_rate(v, F, sigma, force, dF, fixed_mask, out):
         # the energy rate the CPU's kernels.rk_update sums (kernels._node_energy_rate) into
-        # out[0], and into out[1] the power v . f of the
-        # held velocity components: block sums in shared memory, one atomic per block
+        # out[0], and into out[1] the power v . f of the held velocity components: block
+        # sums in shared memory, one atomic per block
         a = cuda.grid(1)
         tid = cuda.threadIdx.x
         part = cuda.shared.array((THREADS, 2), float64)

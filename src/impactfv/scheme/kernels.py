@@ -17,8 +17,8 @@ import numpy as np
 from numba import njit, prange
 
 from .. import materials as M
-from ..backends.cpu import (KERNEL_FASTMATH, load_matrix, load_vector, local_components, local_matrix,
-                            local_rows, local_vector, point, store_matrix)
+from ..backends.cpu import (KERNEL_FASTMATH, load_matrix, load_vector, local_components,
+                            local_matrix, local_rows, local_vector, point, store_matrix)
 from ..tensors import determinant as _determinant
 from ..tensors import stress_power as _stress_power
 from ..tensors import symmetric_index as _symmetric_index

@@ -174,7 +174,9 @@ class FVStepper:
     # ------------------------------------------------------------------ one step
     def rates(self, stage=0):
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
-        state, at the stage's time (the loads are brought to it by the caller)."""
+        state, at the stage's time (the loads are brought to it by the caller), and this
+        rank's boundary power and reactions of the stage, which _close_stage completes with
+        the energy rate of the Runge-Kutta update."""
         m = self.disc
         # under MPI the owned nodes' stresses are computed while their ghosts' states arrive
         o = self.n_owned
