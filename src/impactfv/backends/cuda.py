@@ -16,10 +16,11 @@ and the monitors), plus the forces of the held nodes when the case has reactions
 prescribed values go up when the loads change in time. The state is copied back only for
 outputs (:meth:`DeviceState.to_host`).
 
-Not on the device: contact (its search and Riemann states are CPU kernels; a case with
-contact and backend "cuda" is refused with a one-line error) and body forces (refused
-likewise). Without a GPU, the tests run these kernels under numba-cuda's simulator
-(NUMBA_ENABLE_CUDASIM=1), which executes the same Python sources thread by thread.
+Body forces are added on the device. Contact is not: its search and Riemann states are the
+CPU's kernels, run on the host on the contact surfaces' rows of the state (:class:`HostContact`),
+whose results go back to the device each stage. Without a GPU, the tests run these kernels
+under numba-cuda's simulator (NUMBA_ENABLE_CUDASIM=1), which executes the same Python
+sources thread by thread.
 """
 
 from __future__ import annotations
@@ -49,11 +50,6 @@ def problem(case) -> str | None:
                 'or driver); use backend = "cpu"')
     if case.run.method != "fv":
         return f'run.backend = "cuda" runs the FV method only, not {case.run.method!r}'
-    if case.contacts:
-        return ('run.backend = "cuda" does not run contact yet (search and contact states '
-                'are CPU kernels); use backend = "cpu" for cases with [[contact]]')
-    if any(getattr(b, "body_force", None) is not None for b in case.spec.body):
-        return 'run.backend = "cuda" does not apply body forces yet; use backend = "cpu"'
     return None
 
 
@@ -309,11 +305,15 @@ def _make_kernels(d, m, kind):
     @cuda.jit
     def boundary_fluxes(v, F, sigma, node_material, table, bface_node, bface_others, bface_C,
                         bface_bc, own, denominator, bc_fixed, prescribed_velocity,
-                        prescribed_traction, tangential_correction, force, dF, power,
-                        bc_force):
-        # the boundary part of the CPU's kernels.assemble_rates, one thread per face
+                        prescribed_traction, tangential_correction, face_contact_weight,
+                        force, dF, power, bc_force):
+        # the boundary part of the CPU's kernels.assemble_rates, one thread per face; a face
+        # takes its boundary flux for the part of it and of the step not in contact
         h = cuda.grid(1)
         if h >= bface_node.shape[0]:
+            return
+        free = 1.0 - face_contact_weight[h]
+        if free == 0.0:
             return
         Fi = cuda.local.array((d, d), float64)
         Si = cuda.local.array((d, d), float64)
@@ -363,17 +363,17 @@ def _make_kernels(d, m, kind):
         geometric_boundary_velocity(vi, ti, tC, vC, fix, zp, n, tangential_correction, u)
         face_power = 0.0
         for i in range(d):
-            cuda.atomic.add(force, (a, i), tC[i] * ln)
-            cuda.atomic.add(bc_force, (bc, i), tC[i] * ln)
+            cuda.atomic.add(force, (a, i), free * tC[i] * ln)
+            cuda.atomic.add(bc_force, (bc, i), free * tC[i] * ln)
             for J in range(d):
-                cuda.atomic.add(dF, (a, i, J), u[i] * bface_C[h, J])
-            face_power += tC[i] * vC[i] * ln
+                cuda.atomic.add(dF, (a, i, J), free * u[i] * bface_C[h, J])
+            face_power += free * tC[i] * vC[i] * ln
         cuda.atomic.add(power, 0, face_power)
 
     @cuda.jit
-    def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, node_material, table, volume,
-                  fixed_mask, fixed_value, start, stop, node_length, with_checks,
-                  with_monitors, smallest, first_bad, out, body):
+    def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_xdot,
+                  node_material, table, volume, fixed_mask, fixed_value, start, stop,
+                  node_length, with_checks, with_monitors, smallest, first_bad, out, body):
         # the CPU's kernels.rk_update / rk_update_last for nodes start..stop-1 (one body
         # when with_checks): block sums in shared memory, one atomic per block
         a = start + cuda.grid(1)
@@ -389,8 +389,10 @@ def _make_kernels(d, m, kind):
             inv_mass = inv_volume / props[RHO]
             finite = True
             Fa = cuda.local.array((d, d), float64)
+            in_contact = contact_state[a] != 0
             for i in range(d):
-                x[a, i] = rk_stage(alpha, x0[a, i], x[a, i], dt, v[a, i])
+                xdot = contact_xdot[a, i] if in_contact else v[a, i]
+                x[a, i] = rk_stage(alpha, x0[a, i], x[a, i], dt, xdot)
                 vn = rk_stage(alpha, v0[a, i], v[a, i], dt, force[a, i] * inv_mass)
                 if fixed_mask[a, i]:
                     vn = fixed_value[a, i]
@@ -480,11 +482,57 @@ def _make_kernels(d, m, kind):
         for i in range(d):
             out[k, i] = force[nodes[k], i]
 
+    @cuda.jit
+    def body_force(force, mass, acceleration, v, out):
+        # the CPU's force += mass a, and into out[0] the power sum mass a . v: block sums
+        a = cuda.grid(1)
+        tid = cuda.threadIdx.x
+        part = cuda.shared.array(THREADS, float64)
+        part[tid] = 0.0
+        if a < force.shape[0]:
+            p = 0.0
+            for i in range(d):
+                f = mass[a] * acceleration[a, i]
+                force[a, i] += f
+                p += f * v[a, i]
+            part[tid] = p
+        cuda.syncthreads()
+        step = THREADS // 2
+        while step > 0:
+            if tid < step:
+                part[tid] += part[tid + step]
+            cuda.syncthreads()
+            step //= 2
+        if tid == 0:
+            cuda.atomic.add(out, 0, part[0])
+
+    @cuda.jit
+    def pack_rows(source, rows, out, column):
+        # out[k, column:column + w] = source[rows[k]] (source viewed as (n, w)): rows of the
+        # state that the contact stage on the host reads
+        k = cuda.grid(1)
+        if k >= rows.shape[0]:
+            return
+        r = rows[k]
+        for j in range(source.shape[1]):
+            out[k, column + j] = source[r, j]
+
+    @cuda.jit
+    def unpack_rows(packed, column, rows, target):
+        # target[rows[k]] = packed[k, column:column + w] (target viewed as (n, w))
+        k = cuda.grid(1)
+        if k >= rows.shape[0]:
+            return
+        r = rows[k]
+        for j in range(target.shape[1]):
+            target[r, j] = packed[k, column + j]
+
     return types.SimpleNamespace(
         stress_and_fields=stress_and_fields, limited_gradient=limited_gradient,
         zero_rates=zero_rates, interior_fluxes=interior_fluxes,
         boundary_fluxes=boundary_fluxes, rk_update=rk_update, gather_rows=gather_rows,
-        energy_rate=energy_rate)
+        energy_rate=energy_rate, body_force=body_force, pack_rows=pack_rows,
+        unpack_rows=unpack_rows)
 
 
 def _blocks(count):
@@ -515,6 +563,14 @@ class DeviceState:
         for name in ("v", "F", "x"):
             self.arrays[name + "0"] = cuda.device_array_like(self.arrays[name])
         self.arrays["U"] = up(s.U) if self.pack else self.arrays["v"]
+        self.mass = up(np.ascontiguousarray(s.mass))
+        n, h = m.n_nodes, len(m.bface_node)
+        # contact: what the host's contact stage decides, on the device (the state and
+        # contact velocity of the nodes, the part of each face in contact)
+        self.arrays["contact_state"] = up(np.zeros(n))
+        self.arrays["contact_xdot"] = up(np.zeros((n, d)))
+        self.arrays["face_contact_weight"] = up(np.zeros(h))
+        self.contact = None if s.contact is None else HostContact(self)
         self.loads_up()
         self.power = cuda.device_array(1)
         self.energy = cuda.device_array(2)
@@ -536,6 +592,8 @@ class DeviceState:
         self.arrays["face_velocity"] = up(loads.face_velocity)
         self.arrays["face_traction"] = up(loads.face_traction)
         self.arrays["fixed_value"] = up(loads.fixed_value)
+        if loads.has_body_force:
+            self.arrays["acceleration"] = up(loads.acceleration)
 
     def to_host(self):
         """Copy the state (v, F, x) back into the stepper's host arrays."""
@@ -549,8 +607,9 @@ class DeviceState:
         for name in ("v", "F", "x"):
             A[name].copy_to_device(getattr(s, name))
 
-    def rates(self):
-        """force and dF of the device state; returns (boundary power, bc forces)."""
+    def rates(self, stage=0, stage_time=0.0):
+        """force and dF of the device state; returns (boundary power, bc forces, the forces
+        of the held nodes or None)."""
         s, m, A, k = self.s, self.s.disc, self.arrays, self.k
         n = m.n_nodes
         own, denominator = m.closure
@@ -562,6 +621,8 @@ class DeviceState:
                 A["U"], A["node_edge_start"], A["node_neighbour"], A["node_C"],
                 A["node_half"], A["bface_start"], A["bface_others"], A["bface_C"],
                 float(own), float(denominator), A["volume"], A["grad"])
+        if self.contact is not None:
+            self.contact.stage(stage, stage_time)
         k.zero_rates[_blocks(n), THREADS](A["force"], A["dF"])
         self.power.copy_to_device(np.zeros(1))
         self.bc_force.copy_to_device(np.zeros(s.bc_force.shape))
@@ -576,7 +637,14 @@ class DeviceState:
                 A["v"], A["F"], A["sigma"], A["node_material"], A["material_table"],
                 A["bface_node"], A["bface_others"], A["bface_C"], A["bface_bc"], float(own),
                 float(denominator), A["bc_fixed"], A["face_velocity"], A["face_traction"],
-                s.tangential_correction, A["force"], A["dF"], self.power, self.bc_force)
+                s.tangential_correction, A["face_contact_weight"], A["force"], A["dF"],
+                self.power, self.bc_force)
+        if self.contact is not None:
+            self.contact.apply()
+        if s.loads.has_body_force:
+            # the power of the body force is summed with the boundary power
+            k.body_force[_blocks(n), THREADS](A["force"], self.mass, A["acceleration"],
+                                              A["v"], self.power)
         power = float(self.power.copy_to_host()[0])
         # the rate of the energy the rates give, and the power of the forces that the
         # supports cancel on held components (scheme.stepper: the energy balance)
@@ -612,7 +680,8 @@ class DeviceState:
                 continue
             k.rk_update[_blocks(stop - start), THREADS](
                 float(alpha), float(dt), A["v0"], A["F0"], A["x0"], A["v"], A["F"], A["x"],
-                A["force"], A["dF"], A["node_material"], A["material_table"], A["volume"],
+                A["force"], A["dF"], A["contact_state"], A["contact_xdot"],
+                A["node_material"], A["material_table"], A["volume"],
                 A["fixed_mask"], A["fixed_value"], start, stop, A["node_length"], bool(last),
                 bool(with_monitors), self.smallest, self.first_bad, self.monitors, body)
         if not last:
@@ -626,3 +695,98 @@ class DeviceState:
         A = self.arrays
         for name in ("v", "F", "x"):
             A[name + "0"].copy_to_device(A[name])
+
+
+class HostContact:
+    """The contact stage of a device run, on the host: per stage the rows of the contact
+    surfaces' nodes (positions, velocity, F, stress, gradients) come from the device, the
+    CPU's contact.driver.ContactSystem runs on them in the stepper's host arrays (it reads
+    and writes only those rows), and what it decides goes back: the part of each contact
+    face in contact, the gradients it drops, and after the flux assembly the contact forces
+    and F-equation terms (added on the host to the device's sums of the surface rows) and
+    each node's contact state and velocity. The transfers grow with the contact surfaces,
+    not with the mesh; the search and the contact Riemann states are the CPU's code."""
+
+    def __init__(self, device):
+        cuda, A, s = device.cuda, device.arrays, device.s
+        self.device, self.s, self.system = device, s, s.contact
+        n, d = s.disc.n_nodes, s.disc.dim
+        self.nodes = s.contact.surface_nodes.astype(np.int64)
+        self.faces = s.contact.faces.astype(np.int64)
+        self.nodes_dev = cuda.to_device(self.nodes)
+        self.faces_dev = cuda.to_device(self.faces)
+
+        def view(name, host, rows=n):
+            # (name, the device array viewed as (rows, w), the host array viewed likewise)
+            w = int(np.prod(host.shape[1:])) if host.ndim > 1 else 1
+            flat = host.reshape(rows, w)
+            assert np.shares_memory(flat, host), name      # a view, written through
+            return name, A[name].reshape(rows, w), flat
+        self.state_in = [view("x", s.x), view("v", s.v), view("F", s.F),
+                         view("sigma", s.sigma)]
+        self.grad = view("grad", s.grad) if s.order == 2 else None
+        self.rates_io = [view("force", s.force), view("dF", s.dF)]
+        self.weights = view("face_contact_weight", s.face_contact_weight,
+                            len(s.disc.bface_node))
+        self.contact_out = [("contact_state", A["contact_state"].reshape(n, 1),
+                             s.contact_state.reshape(n, 1)),
+                            ("contact_xdot", A["contact_xdot"], s.contact_xdot)]
+        self.buffers = {}
+
+    def _buffer(self, rows, width):
+        key = (rows, width)
+        if key not in self.buffers:
+            self.buffers[key] = self.device.cuda.device_array(key)
+        return self.buffers[key]
+
+    def _down(self, views, rows, rows_dev):
+        """Copy the rows ``rows`` of the device arrays ``views`` into the host arrays."""
+        k = self.device.k
+        width = sum(dev.shape[1] for _, dev, _ in views)
+        packed = self._buffer(len(rows), width)
+        column = 0
+        for _, dev, _ in views:
+            k.pack_rows[_blocks(len(rows)), THREADS](dev, rows_dev, packed, column)
+            column += dev.shape[1]
+        host = packed.copy_to_host()
+        column = 0
+        for _, dev, target in views:
+            target[rows] = host[:, column:column + dev.shape[1]]
+            column += dev.shape[1]
+
+    def _up(self, views, rows, rows_dev):
+        """Copy the rows ``rows`` of the host arrays ``views`` into the device arrays."""
+        k = self.device.k
+        width = sum(dev.shape[1] for _, dev, _ in views)
+        host = np.empty((len(rows), width))
+        column = 0
+        for _, dev, source in views:
+            host[:, column:column + dev.shape[1]] = source[rows]
+            column += dev.shape[1]
+        packed = self._buffer(len(rows), width)
+        packed.copy_to_device(host)
+        column = 0
+        for _, dev, _ in views:
+            k.unpack_rows[_blocks(len(rows)), THREADS](packed, column, rows_dev, dev)
+            column += dev.shape[1]
+
+    def stage(self, stage, stage_time):
+        s = self.s
+        views = self.state_in + ([self.grad] if self.grad else [])
+        self._down(views, self.nodes, self.nodes_dev)
+        self.system.stage(s.x, s.v, s.F, s.sigma, s.grad, s.order == 2, s.dt, stage,
+                          stage_time)
+        self._up([self.weights], self.faces, self.faces_dev)
+        if self.grad:
+            self._up([self.grad], self.nodes, self.nodes_dev)
+
+    def apply(self):
+        s = self.s
+        self._down(self.rates_io, self.nodes, self.nodes_dev)
+        self.system.apply(s.force, s.dF, s.loads.fixed_value)
+        self._up(self.rates_io + self.contact_out, self.nodes, self.nodes_dev)
+
+    def end_step(self, time):
+        s = self.s
+        self._down(self.state_in[:3], self.nodes, self.nodes_dev)
+        self.system.end_step(s.x, s.v, s.F, time)

@@ -103,9 +103,7 @@ class FVStepper:
         self._host_stale = False
         if case.run.backend == "cuda":
             from ..backends import cuda
-            why = cuda.problem(case) or ('run.backend = "cuda" does not apply body forces '
-                                         'yet; use backend = "cpu"'
-                                         if self.loads.has_body_force else None)
+            why = cuda.problem(case)
             if why:
                 raise InputError(f"{case.source}: {why}")
             self.device = cuda.DeviceState(self)
@@ -284,7 +282,9 @@ class FVStepper:
                 held_start = loads.fixed_value[self.held]   # the held velocities at t
             if loads.varies:
                 dev.loads_up()
-            power, self.bc_force[:], held_force = dev.rates()
+            power, self.bc_force[:], held_force = dev.rates(stage, t + (dt if stage else 0.0))
+            if self.contact is not None:
+                power += self.contact.wall_power(stage)
             self.stage_power[stage] = power
             self.stage_dissipation[stage] = power - dev.rate
             if self.reaction_rows:
@@ -300,6 +300,8 @@ class FVStepper:
         self._monitors_fresh = bool(self.history_due)
         self._host_stale = True
         self.time = t + dt
+        if self.contact is not None:
+            dev.contact.end_step(self.time)
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
         if self.has_supports:
