@@ -83,11 +83,15 @@ cases = {
         divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=2e-7,
         boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": "2e6*t"}},
                   {"region": "ymax", "traction": ["1e6*t/1e-7", -2e6]}]),
+    "2d_order2_bj_umuscl": block_case(
+        divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=2e-7,
+        boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": "2e6*t"}}]),
     "2d_order1_central": block_case(divisions=(5, 3), velocity=("5e4*y", "-2e4*x"),
                                     end_time=2e-7, order=1, limiter="none",
                                     geometric_flux="central"),
     "3d_order2_venkatakrishnan": box(2, "venkatakrishnan", "upwind"),
 }
+cases["2d_order2_bj_umuscl"]["run"]["muscl_chi"] = 0.6
 ABOUT_ZERO = {"external_work", "energy_balance"}     # compared on the energy scale
 worst = {}
 for name, case in cases.items():
@@ -137,7 +141,8 @@ def test_cuda_kernels_give_the_cpu_results():
     assert proc.returncode == 0, proc.stderr[-3000:]
     worst = json.loads(proc.stdout.strip().splitlines()[-1])
     assert set(worst) == {"2d_two_bars_coulomb", "2d_wall_stick_gravity", "3d_wall_slip",
-                          "2d_order2_bj_clamp_traction", "2d_order1_central",
+                          "2d_order2_bj_clamp_traction", "2d_order2_bj_umuscl",
+                          "2d_order1_central",
                           "3d_order2_venkatakrishnan"}
     for name, err in worst.items():
         assert err <= 1e-10, (name, err)

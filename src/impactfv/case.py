@@ -56,6 +56,11 @@ class RunSettings(_Strict):
     limiter: Literal["none", "barth_jespersen", "venkatakrishnan"] = "barth_jespersen"
     method: Literal["fv", "fem-t3", "fem-q4md"] = "fv"
     geometric_flux: Literal["central", "upwind"] = "upwind"
+    muscl_chi: float = Field(
+        0.0, ge=0, le=1, description="blend of the reconstruction to an edge midpoint "
+        "(U-MUSCL): 0 extrapolates with the node's limited gradient, 1 takes the mean of the "
+        "edge's two nodes, both parts scaled by the node's limiter factor (docs/theory.md, "
+        "Reconstruction and limiter)")
     boundary_correction: Optional[Literal["normal", "full"]] = Field(
         None, description="the F equation's velocity on a free or loaded boundary face: the "
         "interior velocity corrected by the characteristic jump along the normal only, or in "
@@ -68,7 +73,7 @@ class RunSettings(_Strict):
     backend: Literal["cpu", "cuda"] = Field("cpu", description="where the FV kernels run: "
                                             "cpu (numba) or cuda (numba-cuda, an NVIDIA GPU)")
 
-    @field_validator("end_time", "cfl", "output_interval")
+    @field_validator("end_time", "cfl", "output_interval", "muscl_chi")
     @classmethod
     def _finite(cls, value):
         if value is not None and not math.isfinite(value):

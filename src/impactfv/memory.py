@@ -149,7 +149,8 @@ def estimate(bodies: list[BodyCounts], order: int = 2, upwind: bool = True,
     stepper = n * (2 * 8 * (d + d * d + d)                         # v F x and copies
                    + 8 * d * d                                     # Cauchy stress
                    + (8 * ncomp if ncomp > d else 0)               # packed U
-                   + 8 * ncomp * d + 2 * 8 * ncomp                 # gradient, min, max
+                   + 8 * ncomp * (d + 1) + 2 * 8 * ncomp           # gradient and limiter
+                                                                   # factor, min, max
                    + 8 * d + 8 * d * d                             # force, dF
                    + 1 + 8 * d) + 8 * h                            # contact state, xdot,
                                                                    # face weights

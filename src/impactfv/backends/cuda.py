@@ -210,6 +210,7 @@ def _make_kernels(d, m, kind):
                             phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], change))
             for J in range(d):
                 grad[a, i, J] = g[i, J] * phi
+            grad[a, i, d] = phi
 
     @cuda.jit
     def zero_rates(force, dF):
@@ -223,7 +224,8 @@ def _make_kernels(d, m, kind):
 
     @cuda.jit
     def interior_fluxes(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-                        use_reconstruction, stress_reconstructed, upwind_geometric, force, dF):
+                        use_reconstruction, stress_reconstructed, upwind_geometric, bias,
+                        force, dF):
         # the CPU's kernels._flux_edge, one thread per interior edge, scattered atomically
         e = cuda.grid(1)
         if e >= edges.shape[0]:
@@ -265,10 +267,12 @@ def _make_kernels(d, m, kind):
                 for J in range(d):
                     ra += grad[a, i, J] * half[e, J]
                     rb += grad[b, i, J] * half[e, J]
-                va[i] += ra
-                vb[i] -= rb
+                change = 0.5 * bias * (v[b, i] - v[a, i])
+                va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
+                vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
         for side in range(2):
             node = a if side == 0 else b
+            other = b if side == 0 else a
             sign = 1.0 if side == 0 else -1.0
             for i in range(d):
                 for j in range(i, d):
@@ -278,7 +282,8 @@ def _make_kernels(d, m, kind):
                         r = 0.0
                         for K in range(d):
                             r += grad[node, row, K] * half[e, K]
-                        s += sign * r
+                        s += (1.0 - bias) * sign * r + 0.5 * bias * grad[node, row, d] * (
+                            sigma[other, i, j] - s)
                     if side == 0:
                         Sa[i, j] = s
                         Sa[j, i] = s
@@ -630,7 +635,8 @@ class DeviceState:
             k.interior_fluxes[_blocks(m.n_edges), THREADS](
                 A["v"], A["F"], A["sigma"], A["grad"], A["node_material"],
                 A["material_table"], A["edges"], A["C"], A["C_len"], A["half"],
-                s.order == 2, s.stress_reconstructed, s.upwind_geometric, A["force"], A["dF"])
+                s.order == 2, s.stress_reconstructed, s.upwind_geometric, s.bias, A["force"],
+                A["dF"])
         h = len(m.bface_node)
         if h:
             k.boundary_fluxes[_blocks(h), THREADS](

@@ -44,7 +44,7 @@ class GatheredContact:
         self.v = np.zeros((n, d))
         self.F = np.zeros((n, d, d))
         self.sigma = np.zeros((n, d, d))
-        self.grad = np.zeros((n, components, d))
+        self.grad = np.zeros((n, components, d + 1))   # the layout of FVStepper.grad
         self.fixed_value = np.zeros((n, d))
         self.force = np.zeros((n, d))
         self.dF = np.zeros((n, d, d))

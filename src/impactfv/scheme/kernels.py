@@ -141,6 +141,7 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
             for i in range(m):
                 for J in range(d):
                     grad[a, i, J] = g[i, J] * inv
+                grad[a, i, d] = 1.0
         elif kind == L.BARTH_JESPERSEN:
             # the largest rise and fall of the midpoint values over the node's edges, from the
             # unscaled sums (a factor Omega_a on every change; scaled once per component)
@@ -171,6 +172,7 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                 scale = phi * inv
                 for J in range(d):
                     grad[a, i, J] = g[i, J] * scale
+                grad[a, i, d] = phi
         else:
             for i in range(m):
                 for J in range(d):
@@ -187,12 +189,14 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                         phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], change))
                 for J in range(d):
                     grad[a, i, J] = g[i, J] * phi
+                grad[a, i, d] = phi
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
-def _reconstruct_stress(sigma, grad, a, sign, e, half, stress_reconstructed, S, d):
+def _reconstruct_stress(sigma, grad, a, b, sign, e, half, stress_reconstructed, bias, S, d):
     """S = sigma_a, reconstructed to the midpoint of edge e (sign +1 from its first node,
-    -1 from its second) when the stress is reconstructed."""
+    -1 from its second; b the node at its other end) when the stress is reconstructed:
+    sigma_a + (1 - bias) grad sigma_a . (X_mid - X_a) + bias (sigma_b - sigma_a) / 2."""
     for i in range(d):
         for j in range(i, d):
             s = sigma[a, i, j]
@@ -201,15 +205,15 @@ def _reconstruct_stress(sigma, grad, a, sign, e, half, stress_reconstructed, S, 
                 r = 0.0
                 for K in range(d):
                     r += grad[a, row, K] * half[e, K]
-                s += sign * r
+                s += (1.0 - bias) * sign * r + 0.5 * bias * grad[a, row, d] * (sigma[b, i, j] - s)
             S[i, j] = s
             S[j, i] = s
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-               use_reconstruction, stress_reconstructed, upwind_geometric, force, dF, d, Fe,
-               Sa, Sb, work):
+               use_reconstruction, stress_reconstructed, upwind_geometric, bias, force, dF, d,
+               Fe, Sa, Sb, work):
     """Upwind traction (seed eq. 9a) and geometric velocity (9b) of interior edge e.
 
     Both sides' tractions are sigma n da/dA with the face's own normal n and area ratio
@@ -243,10 +247,11 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
             for J in range(d):
                 ra += grad[a, i, J] * half[e, J]
                 rb += grad[b, i, J] * half[e, J]
-            va[i] += ra
-            vb[i] -= rb
-    _reconstruct_stress(sigma, grad, a, 1.0, e, half, stress_reconstructed, Sa, d)
-    _reconstruct_stress(sigma, grad, b, -1.0, e, half, stress_reconstructed, Sb, d)
+            change = 0.5 * bias * (v[b, i] - v[a, i])
+            va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
+            vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
+    _reconstruct_stress(sigma, grad, a, b, 1.0, e, half, stress_reconstructed, bias, Sa, d)
+    _reconstruct_stress(sigma, grad, b, a, -1.0, e, half, stress_reconstructed, bias, Sb, d)
     face_traction(Sa, n, area, ta)
     face_traction(Sb, n, area, tb)
     for i in range(d):
@@ -268,24 +273,23 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                      edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
-                     force, dF, d):
+                     bias, force, dF, d):
     Fe = local_matrix(d)
     Sa = local_matrix(d)
     Sb = local_matrix(d)
     work = local_rows(11, d)
     for e in range(edge_offsets[k], edge_offsets[k + 1]):
         _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-                   use_reconstruction, stress_reconstructed, upwind_geometric, force, dF, d, Fe,
-                   Sa, Sb, work)
+                   use_reconstruction, stress_reconstructed, upwind_geometric, bias, force, dF,
+                   d, Fe, Sa, Sb, work)
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                    edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
                    prescribed_velocity, prescribed_traction, use_reconstruction,
-                   stress_reconstructed,
-                   upwind_geometric, tangential_correction, bface_contact_weight, force, dF,
-                   power, bc_force, dim):
+                   stress_reconstructed, upwind_geometric, bias, tangential_correction,
+                   bface_contact_weight, force, dF, power, bc_force, dim):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt; into
     power[0] the power of the boundary tractions, sum over the dual boundary faces of
     t^C . v^C |C| (the Riemann states of the faces: zero on free faces, the work of a clamp or
@@ -309,10 +313,10 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     for k in prange(nb):
         _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                          edge_offsets, use_reconstruction, stress_reconstructed,
-                         upwind_geometric, force, dF, d)
+                         upwind_geometric, bias, force, dF, d)
     _interior_fluxes(nb, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                      edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
-                     force, dF, d)
+                     bias, force, dF, d)
     Fi = local_matrix(d)
     Si = local_matrix(d)
     Z = local_matrix(d)

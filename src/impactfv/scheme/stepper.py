@@ -38,6 +38,8 @@ class FVStepper:
         self.limiter = LIMITER_IDS[case.run.limiter]
         self.cfl = case.run.cfl
         self.upwind_geometric = case.run.geometric_flux == "upwind"
+        # U-MUSCL blend of the reconstruction (kernels._flux_edge)
+        self.bias = float(case.run.muscl_chi)
         # normal-only keeps compressed free surfaces from folding in 2D; in 3D the tangential
         # part is needed to damp the free faces' tangential modes (docs/theory.md)
         correction = case.run.boundary_correction or ("normal" if d == 2 else "full")
@@ -59,7 +61,7 @@ class FVStepper:
         ncomp = d + d * (d + 1) // 2 if self.stress_reconstructed else d
         self.components = dim_tag(ncomp)
         self.U = np.empty((n, ncomp)) if self.stress_reconstructed else self.v
-        self.grad = np.zeros((n, ncomp, d))
+        self.grad = np.zeros((n, ncomp, d + 1))
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
@@ -197,7 +199,7 @@ class FVStepper:
                          m.edges, m.C, m.C_len, m.half, m.edge_offsets, m.bface_node,
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
                          loads.face_velocity, loads.face_traction, self.order == 2,
-                         self.stress_reconstructed, self.upwind_geometric,
+                         self.stress_reconstructed, self.upwind_geometric, self.bias,
                          self.tangential_correction, self.face_contact_weight, self.force,
                          self.dF, self.power, self.bc_force, self.dim)
         if self.contact is not None:
