@@ -205,7 +205,11 @@ def _reconstruct_stress(sigma, grad, a, b, sign, e, half, stress_reconstructed, 
                 r = 0.0
                 for K in range(d):
                     r += grad[a, row, K] * half[e, K]
-                s += (1.0 - bias) * sign * r + 0.5 * bias * grad[a, row, d] * (sigma[b, i, j] - s)
+                if bias == 0.0:
+                    s += sign * r
+                else:
+                    s += (1.0 - bias) * sign * r + 0.5 * bias * grad[a, row, d] * (
+                        sigma[b, i, j] - s)
             S[i, j] = s
             S[j, i] = s
 
@@ -247,9 +251,13 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
             for J in range(d):
                 ra += grad[a, i, J] * half[e, J]
                 rb += grad[b, i, J] * half[e, J]
-            change = 0.5 * bias * (v[b, i] - v[a, i])
-            va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
-            vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
+            if bias == 0.0:
+                va[i] += ra
+                vb[i] -= rb
+            else:
+                change = 0.5 * bias * (v[b, i] - v[a, i])
+                va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
+                vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
     _reconstruct_stress(sigma, grad, a, b, 1.0, e, half, stress_reconstructed, bias, Sa, d)
     _reconstruct_stress(sigma, grad, b, a, -1.0, e, half, stress_reconstructed, bias, Sb, d)
     face_traction(Sa, n, area, ta)
