@@ -267,9 +267,13 @@ def _make_kernels(d, m, kind):
                 for J in range(d):
                     ra += grad[a, i, J] * half[e, J]
                     rb += grad[b, i, J] * half[e, J]
-                change = 0.5 * bias * (v[b, i] - v[a, i])
-                va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
-                vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
+                if bias == 0.0:
+                    va[i] += ra
+                    vb[i] -= rb
+                else:
+                    change = 0.5 * bias * (v[b, i] - v[a, i])
+                    va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
+                    vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
         for side in range(2):
             node = a if side == 0 else b
             other = b if side == 0 else a
@@ -282,8 +286,11 @@ def _make_kernels(d, m, kind):
                         r = 0.0
                         for K in range(d):
                             r += grad[node, row, K] * half[e, K]
-                        s += (1.0 - bias) * sign * r + 0.5 * bias * grad[node, row, d] * (
-                            sigma[other, i, j] - s)
+                        if bias == 0.0:
+                            s += sign * r
+                        else:
+                            s += (1.0 - bias) * sign * r + 0.5 * bias * grad[node, row, d] * (
+                                sigma[other, i, j] - s)
                     if side == 0:
                         Sa[i, j] = s
                         Sa[j, i] = s

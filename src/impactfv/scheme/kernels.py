@@ -196,7 +196,8 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
 def _reconstruct_stress(sigma, grad, a, b, sign, e, half, stress_reconstructed, bias, S, d):
     """S = sigma_a, reconstructed to the midpoint of edge e (sign +1 from its first node,
     -1 from its second; b the node at its other end) when the stress is reconstructed:
-    sigma_a + (1 - bias) grad sigma_a . (X_mid - X_a) + bias (sigma_b - sigma_a) / 2."""
+    sigma_a + (1 - bias) grad sigma_a . (X_mid - X_a) + bias phi_a (sigma_b - sigma_a) / 2
+    (phi_a the limiter factor, grad[a, row, d])."""
     for i in range(d):
         for j in range(i, d):
             s = sigma[a, i, j]
