@@ -487,14 +487,6 @@ def _make_kernels(d, m, kind):
             cuda.atomic.add(out, 1, part[0, 1])
 
     @cuda.jit
-    def gather_rows(force, nodes, out):
-        k = cuda.grid(1)
-        if k >= nodes.shape[0]:
-            return
-        for i in range(d):
-            out[k, i] = force[nodes[k], i]
-
-    @cuda.jit
     def body_force(force, mass, acceleration, v, out):
         # the CPU's force += mass a, and into out[0] the power sum mass a . v: block sums
         a = cuda.grid(1)
@@ -520,8 +512,8 @@ def _make_kernels(d, m, kind):
 
     @cuda.jit
     def pack_rows(source, rows, out, column):
-        # out[k, column:column + w] = source[rows[k]] (source viewed as (n, w)): rows of the
-        # state that the contact stage on the host reads
+        # out[k, column:column + w] = source[rows[k]] (source viewed as (n, w)): the rows of
+        # the state that the contact stage on the host reads, the forces of the held nodes
         k = cuda.grid(1)
         if k >= rows.shape[0]:
             return
@@ -542,7 +534,7 @@ def _make_kernels(d, m, kind):
     return types.SimpleNamespace(
         stress_and_fields=stress_and_fields, limited_gradient=limited_gradient,
         zero_rates=zero_rates, interior_fluxes=interior_fluxes,
-        boundary_fluxes=boundary_fluxes, rk_update=rk_update, gather_rows=gather_rows,
+        boundary_fluxes=boundary_fluxes, rk_update=rk_update,
         energy_rate=energy_rate, body_force=body_force, pack_rows=pack_rows,
         unpack_rows=unpack_rows)
 
@@ -670,8 +662,8 @@ class DeviceState:
         bc_force = self.bc_force.copy_to_host()
         held = None
         if s.reaction_rows:
-            k.gather_rows[_blocks(self.held.shape[0]), THREADS](A["force"], self.held,
-                                                                self.held_force)
+            k.pack_rows[_blocks(self.held.shape[0]), THREADS](A["force"], self.held,
+                                                              self.held_force, 0)
             held = self.held_sum @ self.held_force.copy_to_host()
         return power, bc_force, held
 
