@@ -17,8 +17,11 @@ which ``d`` is a compile-time constant and the loops over components unroll; wit
 from an array shape at run time the flux loop ran 2.4 times slower.
 """
 
+import contextlib
+import os
 import types
 
+import numba.core.config
 from numba import carray, njit
 from numba import types as nbtypes
 from numba.core import cgutils
@@ -34,6 +37,27 @@ MAX_DIM = 3
 #: change at round-off only (a GPU contracts the same way by default). numba's cache does
 #: not see a change of these flags: clear the __pycache__ folders after changing them.
 KERNEL_FASTMATH = {"contract"}
+
+
+@contextlib.contextmanager
+def superword_vectorization(enabled: bool):
+    """Kernels compiled inside this block use LLVM's superword-level-parallelism (SLP)
+    vectorizer if ``enabled``; numba leaves it off by default (numba.core.config
+    SLP_VECTORIZE, read when a kernel is compiled, i.e. at its first call). The 3D
+    gradient loop over nine fields runs 2.3 times faster with it; the 2D one (five fields)
+    runs 15% slower (docs/performance.md), so the stepper enables it for 3D runs only.
+    NUMBA_SLP_VECTORIZE set in the environment takes precedence. A kernel already compiled
+    (or loaded from numba's cache, which does not record the flag) keeps its code: results
+    are the same either way."""
+    if "NUMBA_SLP_VECTORIZE" in os.environ:
+        yield
+        return
+    previous = numba.core.config.SLP_VECTORIZE
+    numba.core.config.SLP_VECTORIZE = int(enabled)
+    try:
+        yield
+    finally:
+        numba.core.config.SLP_VECTORIZE = previous
 
 
 def dim_tag(dim: int) -> tuple:
@@ -100,6 +124,12 @@ def local_components(m):
 def local_rows(k, d):
     """k scratch vectors of length d (k d <= 48) on the stack, as the rows of one array."""
     return carray(_stack_buffer(48), (k, d))
+
+
+@njit(inline="always")
+def local_scratch(k):
+    """A flat scratch vector of k <= 48 entries on the stack."""
+    return carray(_stack_buffer(48), k)
 
 
 @njit(inline="always")

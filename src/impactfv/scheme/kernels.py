@@ -18,7 +18,8 @@ from numba import njit, prange
 
 from .. import materials as M
 from ..backends.cpu import (KERNEL_FASTMATH, load_matrix, load_vector, local_components,
-                            local_matrix, local_rows, local_vector, point, store_matrix)
+                            local_matrix, local_rows, local_scratch, local_vector, point,
+                            store_matrix)
 from ..tensors import determinant as _determinant
 from ..tensors import stress_power as _stress_power
 from ..tensors import symmetric_index as _symmetric_index
@@ -88,6 +89,15 @@ def pack_velocity_and_stress(v, sigma, U, dim):
                 U[a, d + symmetric_index(i, j, d)] = sigma[a, i, j]
 
 
+@njit(inline="always")
+def slot(i, J, d, m):
+    """Where component i, direction J of a node's gradient sums sits in its scratch: the
+    field index innermost in 3D, so that the loops over the nine fields run on contiguous
+    entries (packed into vector instructions; 2.3 times faster, docs/performance.md), the
+    direction innermost in 2D, where that order is the faster one."""
+    return J * m + i if d == 3 else i * d + J
+
+
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bface_start,
                      bface_others, bface_C, closure, volume, kind, grad, dim, components):
@@ -111,36 +121,58 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
     m = len(components)
     own, denominator = closure
     for a in prange(v.shape[0]):
-        g = local_rows(m, d)
+        g = local_scratch(m * d)      # the unscaled gradient sums, component (i, J) at slot()
         lo = local_components(m)
         hi = local_components(m)
+        ua = local_components(m)
         for i in range(m):
-            lo[i] = v[a, i]
-            hi[i] = v[a, i]
-            for J in range(d):
-                g[i, J] = 0.0
+            ua[i] = v[a, i]
+            lo[i] = ua[i]
+            hi[i] = ua[i]
+        for s in range(m * d):
+            g[s] = 0.0
         for k in range(node_edge_start[a], node_edge_start[a + 1]):
             b = node_neighbour[k]
-            for i in range(m):
-                ub = v[b, i]
-                mean = 0.5 * (v[a, i] + ub)
+            if d == 3:
                 for J in range(d):
-                    g[i, J] += mean * node_C[k, J]
-                lo[i] = min(lo[i], ub)
-                hi[i] = max(hi[i], ub)
+                    c = node_C[k, J]
+                    for i in range(m):
+                        g[slot(i, J, d, m)] += 0.5 * (ua[i] + v[b, i]) * c
+            else:
+                for i in range(m):
+                    mean = 0.5 * (ua[i] + v[b, i])
+                    for J in range(d):
+                        g[slot(i, J, d, m)] += mean * node_C[k, J]
+            for i in range(m):
+                lo[i] = min(lo[i], v[b, i])
+                hi[i] = max(hi[i], v[b, i])
         for h in range(bface_start[a], bface_start[a + 1]):
-            for i in range(m):
-                face = own * v[a, i]
+            if d == 3:
+                face = local_components(m)
+                for i in range(m):
+                    face[i] = own * ua[i]
                 for o in bface_others[h]:
-                    face += v[o, i]
-                face /= denominator
+                    for i in range(m):
+                        face[i] += v[o, i]
+                for i in range(m):
+                    face[i] /= denominator
                 for J in range(d):
-                    g[i, J] += face * bface_C[h, J]
+                    c = bface_C[h, J]
+                    for i in range(m):
+                        g[slot(i, J, d, m)] += face[i] * c
+            else:
+                for i in range(m):
+                    mean = own * ua[i]
+                    for o in bface_others[h]:
+                        mean += v[o, i]
+                    mean /= denominator
+                    for J in range(d):
+                        g[slot(i, J, d, m)] += mean * bface_C[h, J]
         inv = 1.0 / volume[a]
         if kind == L.NONE:
             for i in range(m):
                 for J in range(d):
-                    grad[a, i, J] = g[i, J] * inv
+                    grad[a, i, J] = g[slot(i, J, d, m)] * inv
                 grad[a, i, d] = 1.0
         elif kind == L.BARTH_JESPERSEN:
             # the largest rise and fall of the midpoint values over the node's edges, from the
@@ -151,14 +183,26 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                 rise[i] = 0.0
                 fall[i] = 0.0
             for k in range(node_edge_start[a], node_edge_start[a + 1]):
-                for i in range(m):
-                    change = 0.0
+                if d == 3:
+                    changes = local_components(m)
+                    for i in range(m):
+                        changes[i] = 0.0
                     for J in range(d):
-                        change += g[i, J] * node_half[k, J]
-                    rise[i] = max(rise[i], change)
-                    fall[i] = min(fall[i], change)
+                        offset = node_half[k, J]
+                        for i in range(m):
+                            changes[i] += g[slot(i, J, d, m)] * offset
+                    for i in range(m):
+                        rise[i] = max(rise[i], changes[i])
+                        fall[i] = min(fall[i], changes[i])
+                else:
+                    for i in range(m):
+                        change = 0.0
+                        for J in range(d):
+                            change += g[slot(i, J, d, m)] * node_half[k, J]
+                        rise[i] = max(rise[i], change)
+                        fall[i] = min(fall[i], change)
             for i in range(m):
-                u = v[a, i]
+                u = ua[i]
                 # a change below 1e-10 of the local range needs no limiting; without this
                 # tolerance a round-off sized change at an extremum would switch phi to 0
                 tolerance = 1e-10 * (hi[i] - lo[i])
@@ -171,24 +215,23 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                     phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], down))
                 scale = phi * inv
                 for J in range(d):
-                    grad[a, i, J] = g[i, J] * scale
+                    grad[a, i, J] = g[slot(i, J, d, m)] * scale
                 grad[a, i, d] = phi
         else:
+            for s in range(m * d):
+                g[s] = g[s] * inv
             for i in range(m):
-                for J in range(d):
-                    g[i, J] = g[i, J] * inv
-            for i in range(m):
-                u = v[a, i]
+                u = ua[i]
                 tolerance = 1e-10 * (hi[i] - lo[i])
                 phi = 1.0
                 for k in range(node_edge_start[a], node_edge_start[a + 1]):
                     change = 0.0
                     for J in range(d):
-                        change += g[i, J] * node_half[k, J]
+                        change += g[slot(i, J, d, m)] * node_half[k, J]
                     if abs(change) > tolerance:
                         phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], change))
                 for J in range(d):
-                    grad[a, i, J] = g[i, J] * phi
+                    grad[a, i, J] = g[slot(i, J, d, m)] * phi
                 grad[a, i, d] = phi
 
 

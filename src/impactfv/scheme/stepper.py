@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..backends.cpu import dim_tag
+from ..backends.cpu import dim_tag, superword_vectorization
 from ..case import Case
 from ..errors import InputError, SimulationError
 from ..io.fields import nodal_stress
@@ -318,6 +318,10 @@ class FVStepper:
         if self.device is not None:
             self._forget_state_values()
             return self._device_step(dt)
+        with superword_vectorization(self.disc.dim == 3):
+            self._host_step(dt)
+
+    def _host_step(self, dt: float):
         m = self.disc
         loads = self.loads
         self.v0[:] = self.v
