@@ -1,7 +1,9 @@
 """The default Courant number is stable: the exact stability limit of the linearised scheme
 (the eigenvalues of its Jacobian, against the stability region of the two-stage Runge-Kutta
 scheme) lies above cfl 0.4 in 2D and 3D, on structured and unstructured meshes, for order 1
-and order 2 (docs/theory.md, "Time")."""
+and order 2 (docs/theory.md, "Time"); and under compression the upwind geometric flux grows a
+family of grid-scale modes that the central one has not (docs/theory.md, "Stability under
+compression")."""
 
 import numpy as np
 import pytest
@@ -20,11 +22,13 @@ def stepper(mesh, order, dim):
     return FVStepper(load_case(case))
 
 
-def jacobian(st):
-    """d(rates)/d(v, F) at rest, by finite differences (the scheme is linear there)."""
+def jacobian(st, F0=None):
+    """d(rates)/d(v, F) at rest with the uniform deformation F0 (default the identity), by
+    finite differences."""
     m = st.disc
     n, d = m.n_nodes, m.dim
     rho = m.material_table[0, 0]
+    F0 = np.eye(d) if F0 is None else F0
 
     def rates(u):
         st.v[:] = u[:n * d].reshape(n, d)
@@ -33,7 +37,7 @@ def jacobian(st):
         return np.concatenate([(st.force / (rho * m.volume[:, None])).ravel(),
                                (st.dF / m.volume[:, None, None]).ravel()])
 
-    u0 = np.concatenate([np.zeros(n * d), np.tile(np.eye(d).ravel(), n)])
+    u0 = np.concatenate([np.zeros(n * d), np.tile(F0.ravel(), n)])
     r0 = rates(u0.copy())
     J = np.empty((len(u0), len(u0)))
     for k in range(len(u0)):
@@ -122,3 +126,66 @@ def test_normal_only_boundary_correction_leaves_growing_modes_on_tetrahedra(tmp_
 
     assert 1e-7 < growth(gmsh_box(tmp_path), 3) < 1e-3
     assert growth({"generator": "disc", "centre": [0, 0], "radius": 0.002, "rings": 4}, 2) == 0
+
+
+def prestressed_block(geometric, stretch):
+    """A free 4 x 2 mm block of the seed material (neo-Hookean, nu = 0.495), 8 x 4 cells,
+    stretched uniformly along x by F11 = ``stretch`` with F22 such that sigma22 = 0, and held
+    in that state by the dead loads P N on its four sides (an exact equilibrium of the
+    scheme). Returns its stepper, F and sigma."""
+    from conftest import COPPER
+
+    from impactfv.materials import Material, cauchy_stress
+
+    props = np.array(Material.from_entry(COPPER).table_row())
+
+    def stress(F22):
+        sigma = np.zeros((2, 2))
+        cauchy_stress(np.diag([stretch, F22]), props, sigma)
+        return sigma
+
+    lo, hi = 0.5, 2.0
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if stress(mid)[1, 1] > 0 else (mid, hi)
+    F0 = np.diag([stretch, 0.5 * (lo + hi)])
+    sigma = stress(F0[1, 1])
+    P = np.linalg.det(F0) * sigma @ np.linalg.inv(F0).T
+    sides = {"xmin": [-1.0, 0.0], "xmax": [1.0, 0.0], "ymin": [0.0, -1.0], "ymax": [0.0, 1.0]}
+    case = {"run": {"end_time": 1e-5, "order": 2, "limiter": "none",
+                    "geometric_flux": geometric},
+            "material": [COPPER],
+            "body": [{"name": "b", "material": COPPER["name"], "velocity": [0.0, 0.0],
+                      "mesh": {"generator": "rectangle", "origin": [0, 0],
+                               "size": [0.004, 0.002], "divisions": [8, 4]},
+                      "boundary": [{"region": r, "traction": (P @ N).tolist()}
+                                   for r, N in sides.items()]}]}
+    return FVStepper(load_case(case)), F0, sigma
+
+
+@pytest.mark.parametrize("geometric", ["upwind", "central"])
+def test_compression_makes_the_upwind_geometric_flux_grow_a_mode_per_node(geometric):
+    """Why compressed free surfaces wrinkle at h = 0.1 mm (docs/theory.md, "Stability under
+    compression"). Linearised about a block compressed to F11 = 0.9 (sigma11 = -82 MPa, held
+    by dead loads), both fluxes have the physical instability of a free body under compressive
+    dead loads, a rigid rotation growing at sqrt(12 |sigma11| / (rho (L^2 + t^2))) (measured
+    8.2e4 /s against 7.9e4 /s of that rigid-body estimate). The central flux has nothing else
+    growing faster than 1e-4 per step (measured 4.9e-5), the upwind flux a family of about one
+    mode per node (36 growing of 45 nodes, 25 faster than 1e-4 per step; the same per step on
+    16 x 8 and 24 x 12 cells, so that a finer mesh folds sooner in time). In tension nothing
+    grows with either flux."""
+    st, F0, sigma = prestressed_block(geometric, 0.9)
+    lam = np.sort(np.linalg.eigvals(jacobian(st, F0)).real)[::-1]
+    dt = st.stable_dt()
+    length, thickness = 0.004 * F0[0, 0], 0.002 * F0[1, 1]
+    rho = st.disc.material_table[0, 0]
+    rotation = np.sqrt(12 * -sigma[0, 0] / (rho * (length ** 2 + thickness ** 2)))
+    assert lam[0] == pytest.approx(rotation, rel=0.1)
+    fast = int(np.sum(lam[1:] * dt > 1e-4))
+    if geometric == "central":
+        assert fast == 0
+    else:
+        assert fast >= st.disc.n_nodes // 3
+    st, F0, sigma = prestressed_block(geometric, 1.05)
+    assert sigma[0, 0] > 0
+    assert np.max(np.linalg.eigvals(jacobian(st, F0)).real) * st.stable_dt() < 1e-7
