@@ -150,7 +150,8 @@ def assert_same_run(a, b, mass=1.0, rtol=RTOL):
     for j, c in enumerate(ca):
         if c.startswith("momentum_"):
             scale[j] = max(scale[j], momentum)
-        if c in ("external_work", "energy_balance", "kinetic_energy", "strain_energy"):
+        if c in ("external_work", "energy_balance", "integration_energy", "kinetic_energy",
+                 "strain_energy"):
             scale[j] = max(scale[j], energy)
     scale[~(scale > 0)] = 1.0
     diff = np.nan_to_num(np.abs(ha - hb), nan=0.0) / scale

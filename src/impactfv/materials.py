@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .tensors import cofactor_entry, determinant, smallest_stretch_squared
+from .tensors import cofactor_entry, determinant, smallest_stretch_squared, stress_power
 
 NEO_HOOKEAN = 0
 LINEAR_ELASTIC = 1
@@ -86,6 +86,21 @@ class Material:
 
 
 # --------------------------------------------------------------------------- point functions
+
+def strain_power(sigma, F, D, props):
+    """P : D, the power of a deformation-gradient rate D for the Cauchy stress sigma at F:
+    P = sigma cof F for finite-strain laws (tensors.stress_power), P = sigma for the
+    small-strain law, whose energy is a function of sym(F) - I (the energy balance,
+    docs/theory.md)."""
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        d = F.shape[0]
+        power = 0.0
+        for i in range(d):
+            for J in range(d):
+                power += sigma[i, J] * D[i, J]
+        return power
+    return stress_power(sigma, F, D)
+
 
 def small_strain(props):
     """True for laws posed in the reference configuration (linear elastic: P = sigma(eps)),

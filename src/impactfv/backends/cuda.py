@@ -31,6 +31,7 @@ import os
 import types
 
 import numpy as np
+from ..scheme.time import STAGES
 
 #: threads per block of every kernel (a power of two: the block sums halve it); the simulator
 #: runs every thread of a block as a Python thread, so it gets small blocks
@@ -99,14 +100,13 @@ def _make_kernels(d, m, kind):
     from ..scheme import riemann as R
     from ..scheme import time as T
     from ..tensors import determinant as _determinant
-    from ..tensors import stress_power as _stress_power
     from ..tensors import symmetric_index as _symmetric_index
 
     cauchy_stress = device(M.cauchy_stress)
     strain_energy_density = device(M.strain_energy_density)
     min_stretch = device(M.min_stretch)
     determinant = device(_determinant)
-    stress_power = device(_stress_power)
+    strain_power = device(M.strain_power)
     symmetric_index = device(_symmetric_index)
     face_geometry = device(R.face_geometry)
     face_traction = device(R.face_traction)
@@ -117,6 +117,7 @@ def _make_kernels(d, m, kind):
     geometric_boundary_velocity = device(R.geometric_boundary_velocity)
     limiter_factor = device(L.limiter_factor)
     rk_stage = device(T.rk_stage)
+    heun_energy_excess = device(T.heun_energy_excess)
     RHO, CP, CS = M.RHO, M.CP, M.CS
     BJ, NONE = L.BARTH_JESPERSEN, L.NONE
     D2 = d * d
@@ -447,16 +448,23 @@ def _make_kernels(d, m, kind):
                     cuda.atomic.add(out, (body, j), part[0, j])
 
     @cuda.jit
-    def energy_rate(v, F, sigma, force, dF, fixed_mask, out):
+    def energy_rate(v, F, sigma, force, dF, fixed_mask, v0, F0, volume, node_material, table,
+                    dt, with_integration, out):
         # the energy rate the CPU's kernels.rk_update sums (kernels._node_energy_rate) into
-        # out[0], and into out[1] the power v . f of the held velocity components: block
-        # sums in shared memory, one atomic per block
+        # out[0], into out[1] the power v . f of the held velocity components and, at the
+        # last stage, into out[2] the energy the step adds (scheme.time.heun_energy_excess,
+        # as the CPU's kernels.rk_update_last): block sums in shared memory, one atomic per
+        # block
         a = cuda.grid(1)
         tid = cuda.threadIdx.x
-        part = cuda.shared.array((THREADS, 2), float64)
+        part = cuda.shared.array((THREADS, 3), float64)
         part[tid, 0] = 0.0
         part[tid, 1] = 0.0
+        part[tid, 2] = 0.0
         if a < v.shape[0]:
+            if with_integration:
+                part[tid, 2] = heun_energy_excess(a, dt, table[node_material[a]], volume[a],
+                                                  fixed_mask, v0, v, force, F0, F, dF)
             Fa = cuda.local.array((d, d), float64)
             Sa = cuda.local.array((d, d), float64)
             Da = cuda.local.array((d, d), float64)
@@ -472,19 +480,19 @@ def _make_kernels(d, m, kind):
                     held += v[a, i] * force[a, i]
                 else:
                     rate += v[a, i] * force[a, i]
-            part[tid, 0] = rate + stress_power(Sa, Fa, Da)
+            part[tid, 0] = rate + strain_power(Sa, Fa, Da, table[node_material[a]])
             part[tid, 1] = held
         cuda.syncthreads()
         step = THREADS // 2
         while step > 0:
             if tid < step:
-                part[tid, 0] += part[tid + step, 0]
-                part[tid, 1] += part[tid + step, 1]
+                for j in range(3):
+                    part[tid, j] += part[tid + step, j]
             cuda.syncthreads()
             step //= 2
         if tid == 0:
-            cuda.atomic.add(out, 0, part[0, 0])
-            cuda.atomic.add(out, 1, part[0, 1])
+            for j in range(3):
+                cuda.atomic.add(out, j, part[0, j])
 
     @cuda.jit
     def body_force(force, mass, acceleration, v, out):
@@ -577,7 +585,7 @@ class DeviceState:
         self.contact = None if s.contact is None else HostContact(self)
         self.loads_up()
         self.power = cuda.device_array(1)
-        self.energy = cuda.device_array(2)
+        self.energy = cuda.device_array(3)
         self.bc_force = cuda.device_array(s.bc_force.shape)
         self.smallest = cuda.device_array(1)
         self.first_bad = cuda.device_array(1, np.int64)
@@ -653,11 +661,15 @@ class DeviceState:
         power = float(self.power.copy_to_host()[0])
         # the rate of the energy the rates give, and the power of the forces that the
         # supports cancel on held components (scheme.stepper: the energy balance)
-        self.energy.copy_to_device(np.zeros(2))
+        self.energy.copy_to_device(np.zeros(3))
+        last = stage == len(STAGES) - 1
         k.energy_rate[_blocks(n), THREADS](A["v"], A["F"], A["sigma"], A["force"], A["dF"],
-                                           A["fixed_mask"], self.energy)
-        rate, held_power = self.energy.copy_to_host()
+                                           A["fixed_mask"], A["v0"], A["F0"], A["volume"],
+                                           A["node_material"], A["material_table"],
+                                           float(s.dt), bool(last), self.energy)
+        rate, held_power, integration = self.energy.copy_to_host()
         self.rate = float(rate)
+        self.integration = float(integration)
         power -= float(held_power)
         bc_force = self.bc_force.copy_to_host()
         held = None

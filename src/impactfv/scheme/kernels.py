@@ -21,7 +21,6 @@ from ..backends.cpu import (KERNEL_FASTMATH, load_matrix, load_vector, local_com
                             local_matrix, local_rows, local_scratch, local_vector, point,
                             store_matrix)
 from ..tensors import determinant as _determinant
-from ..tensors import stress_power as _stress_power
 from ..tensors import symmetric_index as _symmetric_index
 from . import limiters as L
 from . import riemann as R
@@ -32,7 +31,7 @@ strain_energy_density = point(M.strain_energy_density)
 pressure_and_von_mises = point(M.pressure_and_von_mises)
 min_stretch = point(M.min_stretch)
 determinant = point(_determinant)
-stress_power = point(_stress_power)
+strain_power = point(M.strain_power)
 symmetric_index = point(_symmetric_index)
 spatial_normal = point(R.spatial_normal)
 face_geometry = point(R.face_geometry)
@@ -44,6 +43,7 @@ boundary_state = point(R.boundary_state)
 geometric_boundary_velocity = point(R.geometric_boundary_velocity)
 limiter_factor = point(L.limiter_factor)
 rk_stage = point(T.rk_stage)
+heun_energy_excess = point(T.heun_energy_excess)
 
 RHO, CP, CS = M.RHO, M.CP, M.CS
 
@@ -436,7 +436,7 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
-def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d):
+def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, d):
     """The rate of the kinetic and strain energy of node a as its rates give it: v . f over
     the velocity components that are not held, plus P : Omega dF/dt with the first Piola
     stress P = sigma cof F (docs/theory.md, "Energy balance"). Read before the node's state
@@ -451,7 +451,7 @@ def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d):
     load_matrix(F, a, Fa)
     load_matrix(sigma, a, Sa)
     load_matrix(dF, a, Da)
-    return rate + stress_power(Sa, Fa, Da)
+    return rate + strain_power(Sa, Fa, Da, props)
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
@@ -467,7 +467,8 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
     d = len(dim)
     total = 0.0
     for a in prange(v.shape[0]):
-        total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d)
+        total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask,
+                                   table[node_material[a]], d)
         inv_volume = 1.0 / volume[a]
         inv_mass = inv_volume / table[node_material[a], RHO]
         in_contact = contact_state[a] != 0
@@ -496,13 +497,15 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
     of each body into ``out`` (as :func:`monitors`, summed in the same order).
 
     Returns (min over nodes of h_a lambda_min,a / c_p,a, index of the first bad node or -1,
-    the energy rate of the stage's state as :func:`rk_update` returns it).
+    the energy rate of the stage's state as :func:`rk_update` returns it, the energy the
+    two-stage step adds, scheme.time.heun_energy_excess summed).
     """
     d = len(dim)
     n = v.shape[0]
     smallest = np.inf
     first_bad = n
     total = 0.0
+    integration = 0.0
     for k in range(body_start.shape[0] - 1):
         kinetic = 0.0
         strain = 0.0
@@ -510,7 +513,10 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
         p1 = 0.0
         p2 = 0.0
         for a in prange(body_start[k], body_start[k + 1]):
-            total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, d)
+            total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask,
+                                       table[node_material[a]], d)
+            integration += heun_energy_excess(a, dt, table[node_material[a]], volume[a],
+                                              fixed_mask, v0, v, force, F0, F, dF)
             props = table[node_material[a]]
             inv_volume = 1.0 / volume[a]
             inv_mass = inv_volume / props[RHO]
@@ -554,7 +560,7 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
             out[k, 3] = p1
             if d == 3:
                 out[k, 4] = p2
-    return smallest, (first_bad if first_bad < n else -1), total
+    return smallest, (first_bad if first_bad < n else -1), total, integration
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)

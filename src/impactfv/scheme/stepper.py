@@ -84,6 +84,10 @@ class FVStepper:
         # energy the rates give), and its Runge-Kutta integral
         self.stage_dissipation = np.zeros(2)
         self.dissipated = 0.0
+        # the energy the two-stage Runge-Kutta step adds beyond the Runge-Kutta mean of the
+        # stage rates (scheme.time.heun_energy_excess), per step and since t = 0
+        self.stage_integration = 0.0
+        self.integration = 0.0
         # the strongly held velocity components (owned nodes): the support's work there is
         # the kinetic energy it gives them minus the power of the force it cancels
         self.held = np.nonzero(m.fixed_mask[:self.n_owned])      # (nodes, components)
@@ -223,14 +227,17 @@ class FVStepper:
             self._stage_sums.append(self.reaction_mask * (self.bc_force[self.reaction_rows]
                                                           - self.reaction_sum @ self.force[:o]))
 
-    def _close_stage(self, stage: int, rate: float):
+    def _close_stage(self, stage: int, rate: float, integration: float = 0.0):
         """The stage's power, dissipation and reactions from what rates() left and the energy
-        rate its Runge-Kutta update summed: one reduction over ranks per stage."""
+        rate its Runge-Kutta update summed (and at the last stage the energy the step adds,
+        scheme.time.heun_energy_excess): one reduction over ranks per stage."""
         power, *reaction = self._stage_sums
-        sums = self._sum(np.concatenate([[power, rate], *(r.ravel() for r in reaction)]))
+        sums = self._sum(np.concatenate([[power, rate, integration],
+                                         *(r.ravel() for r in reaction)]))
         power, rate = float(sums[0]), float(sums[1])
+        self.stage_integration = float(sums[2])
         if self.reaction_rows:
-            self.stage_reaction[stage] = sums[2:].reshape(self.stage_reaction[stage].shape)
+            self.stage_reaction[stage] = sums[3:].reshape(self.stage_reaction[stage].shape)
         if self.contact is not None:
             power += self.contact.wall_power(stage)     # the same on every rank
         self.stage_power[stage] = power
@@ -289,6 +296,7 @@ class FVStepper:
                 power += self.contact.wall_power(stage)
             self.stage_power[stage] = power
             self.stage_dissipation[stage] = power - dev.rate
+            self.stage_integration = dev.integration
             if self.reaction_rows:
                 self.stage_reaction[stage] = self.reaction_mask * (
                     self.bc_force[self.reaction_rows] - held_force)
@@ -306,6 +314,7 @@ class FVStepper:
             dev.contact.end_step(self.time)
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
+        self.integration += self.stage_integration
         if self.has_supports:
             self.external_work += 0.5 * float(np.dot(
                 self.mass[self.held[0]], loads.fixed_value[self.held] ** 2 - held_start ** 2))
@@ -351,17 +360,18 @@ class FVStepper:
                 continue
             # the last stage also gives the next time step, the state check and (when a
             # history row follows) the monitors, in the same pass over the nodes
-            smallest, bad, rate = K.rk_update_last(
+            smallest, bad, rate, integration = K.rk_update_last(
                 alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
                 m.body_start, bool(self.history_due), self.monitor_buf, self.dim)
             self._begin_state_exchange()
-            self._close_stage(stage, rate)
+            self._close_stage(stage, rate, integration)
             self._next_dt = self.cfl * self._min(smallest)
             self._bad = self._first_bad(bad)
             self._monitors_fresh = bool(self.history_due)
         self.time = t + dt
         self.external_work += 0.5 * dt * (self.stage_power[0] + self.stage_power[1])
         self.dissipated += 0.5 * dt * (self.stage_dissipation[0] + self.stage_dissipation[1])
+        self.integration += self.stage_integration
         if self.has_supports:
             self.external_work += self._sum(0.5 * float(np.dot(
                 self.mass[self.held[0]], self.v[self.held] ** 2 - self.v0[self.held] ** 2)))
@@ -400,7 +410,8 @@ class FVStepper:
         reactions = [f"reaction_{name}_f{c}" for name in self.reaction_names
                      for c in components]
         return (["kinetic_energy", "strain_energy", "total_energy", *momentum,
-                 "external_work", "dissipated_energy", "energy_balance", *reactions]
+                 "external_work", "dissipated_energy", "integration_energy", "energy_balance",
+                 *reactions]
                 + (self.contact.history_columns() if self.contact is not None else []))
 
     def history_row(self) -> list[float]:
@@ -413,11 +424,12 @@ class FVStepper:
         kinetic, strain, *momentum = self._sum(self.monitor_buf).sum(axis=0)
         extra = self.contact.history_values() if self.contact is not None else []
         # the energy balance: what the bodies hold minus the work done on them plus what the
-        # scheme dissipated (upwinding at fronts and boundaries, the contacts); constant up to
+        # scheme dissipated (upwinding at fronts and boundaries, the contacts) minus what the
+        # time stepping added; constant up to the third-order and the non-quadratic parts of
         # the time-integration error
-        balance = kinetic + strain - self.external_work + self.dissipated
+        balance = kinetic + strain - self.external_work + self.dissipated - self.integration
         return [kinetic, strain, kinetic + strain, *momentum, self.external_work,
-                self.dissipated, balance, *self.reaction.ravel(), *extra]
+                self.dissipated, self.integration, balance, *self.reaction.ravel(), *extra]
 
     def _whole_state(self):
         """(discretisation, v, F, x, contact status, contact normal traction) of all nodes:
@@ -476,7 +488,8 @@ class FVStepper:
         self._host()
         arrays = {"v": self.v, "F": self.F, "x": self.x, "time": np.array(self.time),
                   "external_work": np.array(self.external_work),
-                  "dissipated": np.array(self.dissipated), "reaction": self.reaction}
+                  "dissipated": np.array(self.dissipated),
+                  "integration": np.array(self.integration), "reaction": self.reaction}
         if self.contact is not None:
             arrays["contact_memory"] = self.contact.memory
         return arrays
@@ -496,6 +509,8 @@ class FVStepper:
         self.time = float(arrays["time"])
         self.external_work = float(arrays["external_work"])
         self.dissipated = float(arrays["dissipated"])
+        # checkpoints written before the column existed continue from zero
+        self.integration = float(arrays["integration"]) if "integration" in arrays else 0.0
         self.reaction[:] = arrays["reaction"]
         self.loads.at(self.time)
         if self.contact is not None:
