@@ -463,8 +463,18 @@ def _make_kernels(d, m, kind):
         part[tid, 2] = 0.0
         if a < v.shape[0]:
             if with_integration:
-                part[tid, 2] = heun_energy_excess(a, dt, table[node_material[a]], volume[a],
-                                                  fixed_mask, v0, v, force, F0, F, dF)
+                props = table[node_material[a]]
+                inv_volume = 1.0 / volume[a]
+                inv_mass = inv_volume / props[RHO]
+                change = cuda.local.array((d, d), float64)
+                dv2 = 0.0
+                for i in range(d):
+                    if not fixed_mask[a, i]:
+                        dv = force[a, i] * inv_mass - (v[a, i] - v0[a, i]) / dt
+                        dv2 += dv * dv
+                    for J in range(d):
+                        change[i, J] = dF[a, i, J] * inv_volume - (F[a, i, J] - F0[a, i, J]) / dt
+                part[tid, 2] = heun_energy_excess(dt, props, volume[a], dv2, change)
             Fa = cuda.local.array((d, d), float64)
             Sa = cuda.local.array((d, d), float64)
             Da = cuda.local.array((d, d), float64)

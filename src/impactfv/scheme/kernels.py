@@ -506,6 +506,7 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
     first_bad = n
     total = 0.0
     integration = 0.0
+    inv_dt = 1.0 / dt
     for k in range(body_start.shape[0] - 1):
         kinetic = 0.0
         strain = 0.0
@@ -515,8 +516,6 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
         for a in prange(body_start[k], body_start[k + 1]):
             total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask,
                                        table[node_material[a]], d)
-            integration += heun_energy_excess(a, dt, table[node_material[a]], volume[a],
-                                              fixed_mask, v0, v, force, F0, F, dF)
             props = table[node_material[a]]
             inv_volume = 1.0 / volume[a]
             inv_mass = inv_volume / props[RHO]
@@ -524,20 +523,31 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
             finite = True
             Fa = local_matrix(d)
             va = local_vector(d)
+            # the change of the rates between the stages, L1 - (u* - u0) / dt, for the energy
+            # the step adds (scheme.time.heun_energy_excess)
+            change = local_matrix(d)
+            dv2 = 0.0
             for i in range(d):
                 xdot = contact_xdot[a, i] if in_contact else v[a, i]
                 x[a, i] = rk_stage(alpha, x0[a, i], x[a, i], dt, xdot)
-                vn = rk_stage(alpha, v0[a, i], v[a, i], dt, force[a, i] * inv_mass)
+                acceleration = force[a, i] * inv_mass
+                vn = rk_stage(alpha, v0[a, i], v[a, i], dt, acceleration)
                 if fixed_mask[a, i]:
                     vn = fixed_value[a, i]
+                else:
+                    dv = acceleration - (v[a, i] - v0[a, i]) * inv_dt
+                    dv2 += dv * dv
                 v[a, i] = vn
                 va[i] = vn
                 finite = finite and np.isfinite(vn)
             for i in range(d):
                 for J in range(d):
-                    f = rk_stage(alpha, F0[a, i, J], F[a, i, J], dt, dF[a, i, J] * inv_volume)
+                    rate = dF[a, i, J] * inv_volume
+                    change[i, J] = rate - (F[a, i, J] - F0[a, i, J]) * inv_dt
+                    f = rk_stage(alpha, F0[a, i, J], F[a, i, J], dt, rate)
                     F[a, i, J] = f
                     Fa[i, J] = f
+            integration += heun_energy_excess(dt, props, volume[a], dv2, change)
             jac = determinant(Fa)
             if not (finite and np.isfinite(jac) and jac > 0.0):
                 first_bad = min(first_bad, a)

@@ -17,35 +17,27 @@ def rk_stage(alpha, u0, u, dt, rate):
     return alpha * u0 + (1.0 - alpha) * (u + dt * rate)
 
 
-def heun_energy_excess(a, dt, props, omega, fixed_mask, v0, v, force, F0, F, dF):
-    """The energy the two-stage step adds at node a beyond the Runge-Kutta mean of its stage
+def heun_energy_excess(dt, props, omega, dv2, D):
+    """The energy the two-stage step adds at a node beyond the Runge-Kutta mean of its stage
     energy rates. For an energy quadratic in the state u with Hessian M, the step
     u* = u0 + dt L0, u1 = (u0 + u* + dt L1) / 2 changes it by exactly
 
         dt/2 (grad E(u0) . L0 + grad E(u*) . L1) + dt^2/8 (L1 - L0) . M (L1 - L0),
 
-    the last term returned here (docs/theory.md, "Energy balance"). Called at the last stage
-    before its update: v, F are u*, L0 = (u* - u0) / dt and L1 = (force / mass, dF / omega)
-    the rates just assembled. M is the mass for v (held components, which are imposed and not
-    integrated, left out) and for F the small-strain elasticity omega (lambda (tr D)^2 +
-    2 mu |sym D|^2): exact for linear elastic materials, the small-strain limit of the
-    neo-Hookean Hessian."""
-    d = v.shape[1]
-    inv_dt = 1.0 / dt
-    mass = props[RHO] * omega
-    kinetic = 0.0
-    for i in range(d):
-        if not fixed_mask[a, i]:
-            change = force[a, i] / mass - (v[a, i] - v0[a, i]) * inv_dt
-            kinetic += change * change
+    the last term returned here (docs/theory.md, "Energy balance"). The caller gives the
+    change of the node's rates between the stages, L1 - L0 with L0 = (u* - u0) / dt: dv2 the
+    squared change of the acceleration summed over the integrated (not held) components, D
+    that of dF/dt (d x d). M is the mass rho omega for v and for F the small-strain elasticity
+    omega (lambda (tr D)^2 + 2 mu |sym D|^2): exact for linear elastic materials, the
+    small-strain limit of the neo-Hookean Hessian."""
+    d = D.shape[0]
     trace = 0.0
     sym2 = 0.0
     for i in range(d):
-        for J in range(d):
-            D = dF[a, i, J] / omega - (F[a, i, J] - F0[a, i, J]) * inv_dt
-            DT = dF[a, J, i] / omega - (F[a, J, i] - F0[a, J, i]) * inv_dt
-            sym2 += 0.25 * (D + DT) * (D + DT)
-            if i == J:
-                trace += D
+        trace += D[i, i]
+        sym2 += D[i, i] * D[i, i]
+        for J in range(i + 1, d):
+            shear = D[i, J] + D[J, i]
+            sym2 += 0.5 * shear * shear
     strain = props[LAMBDA] * trace * trace + 2.0 * props[MU] * sym2
-    return 0.125 * dt * dt * (mass * kinetic + omega * strain)
+    return 0.125 * dt * dt * omega * (props[RHO] * dv2 + strain)
