@@ -31,6 +31,7 @@ import os
 import types
 
 import numpy as np
+
 from ..scheme.time import STAGES
 
 #: threads per block of every kernel (a power of two: the block sums halve it); the simulator

@@ -439,7 +439,8 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
 def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, d):
     """The rate of the kinetic and strain energy of node a as its rates give it: v . f over
     the velocity components that are not held, plus P : Omega dF/dt with the first Piola
-    stress P = sigma cof F (docs/theory.md, "Energy balance"). Read before the node's state
+    stress P = sigma cof F, or P = sigma for the small-strain law (materials.strain_power;
+    docs/theory.md, "Energy balance"). Read before the node's state
     is updated, so that the Runge-Kutta update gives it in the same pass."""
     rate = 0.0
     for i in range(d):
@@ -514,9 +515,8 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
         p1 = 0.0
         p2 = 0.0
         for a in prange(body_start[k], body_start[k + 1]):
-            total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask,
-                                       table[node_material[a]], d)
             props = table[node_material[a]]
+            total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, d)
             inv_volume = 1.0 / volume[a]
             inv_mass = inv_volume / props[RHO]
             in_contact = contact_state[a] != 0
