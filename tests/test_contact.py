@@ -268,7 +268,19 @@ def test_paper_bars_hold_up_after_the_snapshot_at_h_0_2_mm(model):
     check_paper_bars_to_300_us(model, 162, geometry=True)
 
 
-def check_paper_bars_to_300_us(model, nx, geometry):
+@pytest.mark.slow
+@pytest.mark.parametrize("model", ["slip", "stick"])
+def test_paper_bars_hold_up_at_h_0_1_mm_with_compatibility_relaxation(model):
+    """At h = 0.1 mm (about 7 minutes each) the default scheme folds about 120 us after the
+    touch: the upwind geometric flux makes incompatible rotations of F grow under
+    compression (docs/theory.md, "Stability under compression"). With F relaxed towards the
+    gradient of the positions over 100 p-wave transit times the bars run to 300 us with
+    every check of the coarser meshes (measured with slip: energy rise 8.5e-14 of E0,
+    deepest gap -1e-4 h, contact 204 us, rebound -43.2 m/s)."""
+    check_paper_bars_to_300_us(model, 324, geometry=True, compatibility_time=100.0)
+
+
+def check_paper_bars_to_300_us(model, nx, geometry, **run_settings):
     """The seed's example (free sides, nu = 0.495) run on to 300 us at h = 32.4 mm / nx, through
     the compression, the release at the free corners and the separation: it completes (it
     stopped at 117.8 us with a collapsed corner before), energy never rises, momentum is
@@ -281,7 +293,7 @@ def check_paper_bars_to_300_us(model, nx, geometry):
 
     data = tomllib.loads((Path(__file__).parents[1] / "examples" / "bars_impact.toml")
                          .read_text())
-    data["run"].update(end_time=300e-6, output_interval=300e-6)
+    data["run"].update(end_time=300e-6, output_interval=300e-6, **run_settings)
     data["contact"][0]["model"] = model
     for body in data["body"]:
         body["mesh"]["divisions"] = [nx, nx * 16 // 81]

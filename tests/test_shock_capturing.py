@@ -15,7 +15,7 @@ from impactfv.validation.bars import two_bars
 L_STRIP, JUMP = 0.1, 2.0
 
 
-def strip(kind, model, nu, nx=200, ny=4, chi=0.0):
+def strip(kind, model, nu, nx=200, ny=4, chi=0.0, **run_settings):
     """A jump of 2 m/s in v_x (kind "p", roller sides) or v_y (kind "s", sides held in x)
     at the middle of a long strip, run until the fronts have travelled 0.35 L (``chi``: the
     U-MUSCL blend, [run] muscl_chi)."""
@@ -27,7 +27,7 @@ def strip(kind, model, nu, nx=200, ny=4, chi=0.0):
     velocity = ["0", "0"]
     velocity[comp] = f"{JUMP}*heaviside({L_STRIP / 2} - x)"
     side = {"y": 0.0} if kind == "p" else {"x": 0.0}
-    case = {"run": {"end_time": end, "muscl_chi": chi},
+    case = {"run": {"end_time": end, "muscl_chi": chi, **run_settings},
             "material": [mat],
             "body": [{"name": "strip", "material": mat["name"], "velocity": velocity,
                       "mesh": {"generator": "rectangle", "origin": [0, 0],
@@ -50,13 +50,14 @@ def strip(kind, model, nu, nx=200, ny=4, chi=0.0):
 @pytest.mark.parametrize("model,nu,chi", [("linear_elastic", 0.3, 0.0), ("neo_hookean", 0.3, 0.0),
                                           ("neo_hookean", 0.495, 0.0),
                                           ("neo_hookean", 0.495, 0.6)])
-def test_no_overshoot_behind_the_fronts(kind, model, nu, chi):
+def test_no_overshoot_behind_the_fronts(kind, model, nu, chi, compatibility_time=0.0):
     """Velocity and the traction component of the wave stay within their exact acoustic
     states (left JUMP, star JUMP/2 and -Z JUMP/2, right 0) up to 2% of each jump; the star
     state is reached to 1%; energy never rises. Before the scheme reconstructed the stress,
     the velocity overshot by 13-20% of the jump. With the U-MUSCL blend (chi = 0.6) the
     central part is scaled by the limiter factor too (without that scaling: 9-12%)."""
-    x, v, s, Z, travel, hist = strip(kind, model, nu, chi=chi)
+    x, v, s, Z, travel, hist = strip(kind, model, nu, chi=chi,
+                                     compatibility_time=compatibility_time)
     x0 = L_STRIP / 2
     v_star, s_star = JUMP / 2, -Z * JUMP / 2
     for front, (lo, hi) in ((x0 - travel, ((JUMP, 0.0), (v_star, s_star))),
@@ -70,6 +71,16 @@ def test_no_overshoot_behind_the_fronts(kind, model, nu, chi):
     assert np.abs(s[star] - s_star).max() < 0.01 * abs(s_star)
     E = hist["total_energy"]
     assert np.all(np.diff(E) <= 1e-12 * E[0])
+
+
+@pytest.mark.parametrize("kind", ["p", "s"])
+def test_compatibility_relaxation_keeps_the_fronts_clean(kind):
+    """The same fronts (neo-Hookean, nu = 0.495) with F relaxed towards the gradient of the
+    positions over 100 p-wave transit times (run.compatibility_time): still within 2% of
+    each jump, star states to 1%, energy never rising. (At 30 transit times the s-wave's
+    stress overshoots by 2.4%, at 10 by 4.1%: the positions follow the central velocity,
+    whose front oscillates, and a fast relaxation pulls F towards it.)"""
+    test_no_overshoot_behind_the_fronts(kind, "neo_hookean", 0.495, 0.0, 100.0)
 
 
 def test_first_touch_is_monotone():

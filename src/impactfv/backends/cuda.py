@@ -50,6 +50,9 @@ def problem(case) -> str | None:
     if not _cuda.is_available():
         return ('run.backend = "cuda": no usable CUDA GPU here (numba-cuda finds no device '
                 'or driver); use backend = "cpu"')
+    if case.run.compatibility_time > 0:
+        return ('run.compatibility_time runs on the cpu backend only, not yet on "cuda"; '
+                'set it to 0 or use backend = "cpu"')
     if case.run.method != "fv":
         return f'run.backend = "cuda" runs the FV method only, not {case.run.method!r}'
     return None

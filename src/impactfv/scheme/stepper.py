@@ -19,6 +19,8 @@ from .limiters import IDS as LIMITER_IDS
 from .loads import Loads
 from .time import STAGES
 
+CP = K.CP
+
 
 class FVStepper:
     """Upwind vertex-centred finite volumes (p-F), two-stage TVD Runge-Kutta."""
@@ -46,6 +48,14 @@ class FVStepper:
         self.tangential_correction = 1.0 if correction == "full" else 0.0
         # the upwind geometric flux needs the reconstructed tractions to be second order
         self.stress_reconstructed = self.order == 2 and self.upwind_geometric
+        # F relaxed towards the gradient of the positions at the rate 1 / tau_a,
+        # tau_a = compatibility_time h_a / c_p,a (docs/theory.md, "Compatibility relaxation")
+        beta = float(case.run.compatibility_time)
+        self.relaxation_rate = None
+        if beta > 0.0:
+            cp = m.material_table[m.node_material, CP]
+            self.relaxation_rate = m.volume * cp / (beta * m.node_length)  # Omega_a / tau_a
+            self.position_gradient = np.zeros((n, d, d + 1))
         self.loads = Loads(case, m)
         self.time = 0.0
         # state
@@ -208,6 +218,8 @@ class FVStepper:
                          self.dF, self.power, self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
+        if self.relaxation_rate is not None:
+            self._relax_towards_positions()
         power = self.power[0]
         o = self.n_owned
         if loads.has_body_force:
@@ -226,6 +238,18 @@ class FVStepper:
             # prescribed components are imposed on the nodes, by cancelling what is left
             self._stage_sums.append(self.reaction_mask * (self.bc_force[self.reaction_rows]
                                                           - self.reaction_sum @ self.force[:o]))
+
+    def _relax_towards_positions(self):
+        """Omega_a dF_a/dt -= (Omega_a / tau_a) (F_a - G_a(x)), with G_a(x) the Green-Gauss
+        gradient of the nodal positions on the node's dual (with the boundary closure, so that
+        it is exact for linear motions and a uniform state stays uniform)."""
+        m = self.disc
+        K.limited_gradient(self.x, m.node_edge_start, m.node_neighbour, m.node_C, m.node_half,
+                           m.bface_start, m.bface_others, m.bface_C, m.closure, m.volume,
+                           LIMITER_IDS["none"], self.position_gradient, self.dim, self.dim)
+        d = m.dim
+        self.dF -= self.relaxation_rate[:, None, None] * (
+            self.F - self.position_gradient[:, :, :d])
 
     def _close_stage(self, stage: int, rate: float, integration: float = 0.0):
         """The stage's power, dissipation and reactions from what rates() left and the energy
