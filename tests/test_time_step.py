@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from impactfv import load_case
+from impactfv.materials import CP
 from impactfv.scheme.stepper import FVStepper
 
 MATERIAL = {"name": "c", "model": "linear_elastic", "density": 8930.0,
@@ -191,9 +192,6 @@ def test_compression_makes_the_upwind_geometric_flux_grow_a_mode_per_node(geomet
     assert np.max(np.linalg.eigvals(jacobian(st, F0)).real) * st.stable_dt() < 1e-7
 
 
-from impactfv.materials import CP as K_CP  # noqa: E402
-
-
 def jacobian_with_positions(st, F0):
     """d(rates)/d(v, F, x) at rest in the uniform state F0, x = F0 X, by finite differences:
     the rates of F depend on the positions when F is relaxed towards their gradient."""
@@ -236,7 +234,7 @@ def test_compatibility_relaxation_removes_the_compression_modes(compatibility_ti
     st.F[:] = F0
     st.x[:] = m.X @ F0.T
     st.rates(0)
-    cp, h = m.material_table[0, K_CP], m.node_length.min()
+    cp, h = m.material_table[0, CP], m.node_length.min()
     assert np.abs(st.dF / m.volume[:, None, None]).max() < 1e-9 * cp / h
     lam = np.sort(np.linalg.eigvals(J).real)[::-1]
     dt = st.stable_dt()

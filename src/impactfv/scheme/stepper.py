@@ -19,8 +19,6 @@ from .limiters import IDS as LIMITER_IDS
 from .loads import Loads
 from .time import STAGES
 
-CP = K.CP
-
 
 class FVStepper:
     """Upwind vertex-centred finite volumes (p-F), two-stage TVD Runge-Kutta."""
@@ -53,9 +51,10 @@ class FVStepper:
         beta = float(case.run.compatibility_time)
         self.relaxation_rate = None
         if beta > 0.0:
-            cp = m.material_table[m.node_material, CP]
+            cp = m.material_table[m.node_material, K.CP]
             self.relaxation_rate = m.volume * cp / (beta * m.node_length)  # Omega_a / tau_a
             self.position_gradient = np.zeros((n, d, d + 1))
+            self._incompatibility = np.empty((n, d, d))
         self.loads = Loads(case, m)
         self.time = 0.0
         # state
@@ -247,9 +246,10 @@ class FVStepper:
         K.limited_gradient(self.x, m.node_edge_start, m.node_neighbour, m.node_C, m.node_half,
                            m.bface_start, m.bface_others, m.bface_C, m.closure, m.volume,
                            LIMITER_IDS["none"], self.position_gradient, self.dim, self.dim)
-        d = m.dim
-        self.dF -= self.relaxation_rate[:, None, None] * (
-            self.F - self.position_gradient[:, :, :d])
+        mismatch = self._incompatibility
+        np.subtract(self.F, self.position_gradient[:, :, :m.dim], out=mismatch)
+        mismatch *= self.relaxation_rate[:, None, None]
+        self.dF -= mismatch
 
     def _close_stage(self, stage: int, rate: float, integration: float = 0.0):
         """The stage's power, dissipation and reactions from what rates() left and the energy
