@@ -271,13 +271,14 @@ def test_paper_bars_hold_up_after_the_snapshot_at_h_0_2_mm(model):
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["slip", "stick"])
 def test_paper_bars_hold_up_at_h_0_1_mm_with_compatibility_relaxation(model):
-    """At h = 0.1 mm (about 7 minutes each) the default scheme folds about 120 us after the
+    """At h = 0.1 mm (about 8 minutes each) the default scheme folds about 120 us after the
     touch: the upwind geometric flux makes incompatible rotations of F grow under
-    compression (docs/theory.md, "Stability under compression"). With F relaxed towards the
-    gradient of the positions over 100 p-wave transit times the bars run to 300 us with
-    every check of the coarser meshes (measured with slip: energy rise 8.5e-14 of E0,
-    deepest gap -1e-4 h, contact 204 us, rebound -43.2 m/s)."""
-    check_paper_bars_to_300_us(model, 324, geometry=True, compatibility_time=100.0)
+    compression (docs/theory.md, "Stability under compression"). With the grid-scale part of
+    F's mismatch with the gradient of the positions relaxed over 30 p-wave transit times the
+    bars run to 300 us with every check of the coarser meshes (measured: energy rise
+    1.7e-14 of E0 in slip and stick, deepest gap -9e-5 h / -4e-5 h, contact 203.4 / 206.1 us,
+    rebound -43.46 / -43.24 m/s, smallest triangle 0.48 h^2)."""
+    check_paper_bars_to_300_us(model, 324, geometry=True, compatibility_time=30.0)
 
 
 def check_paper_bars_to_300_us(model, nx, geometry, **run_settings):
@@ -310,7 +311,10 @@ def check_paper_bars_to_300_us(model, nx, geometry, **run_settings):
     c_bar = np.sqrt(585e6 / (8930.0 * (1 - 0.495 ** 2)))
     assert touching[0] == pytest.approx(80e-6, rel=0.01)
     assert touching[-1] - touching[0] == pytest.approx(2 * 32.4e-3 / c_bar, rel=0.1)
-    assert hist["contact0_gap"][-1] > 0.1 * h          # apart at the end
+    # apart at the end: a gap, or none (nan) when no node has a partner within two segments
+    gap = hist["contact0_gap"][-1]
+    assert np.isnan(gap) or gap > 0.1 * h
+    assert np.abs(hist["contact0_fx"][-1]) == 0.0
     left = result.bodies["left"]
     if geometry:
         assert triangle_areas(left["points"], left["triangles"]).min() > 0.1 * h * h

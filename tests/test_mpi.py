@@ -184,6 +184,19 @@ def test_bars_on_one_two_and_three_ranks_give_the_serial_run(tmp_path):
     assert np.nanmax(np.abs(h[:, -3])) > 0          # the bars did touch
 
 
+def test_compatibility_relaxation_over_ranks(tmp_path):
+    """run.compatibility_time: the mean of a node's neighbours' mismatch reads the ghosts'
+    gradients of the positions, exchanged before it; 3 ranks (a bar cut, the contact across
+    ranks) give the serial run."""
+    relaxed = ("--set", "run.compatibility_time=30")
+    serial = run_case(tmp_path, BARS, 1, "serial", *relaxed)
+    assert_same_run(serial, run_case(tmp_path, BARS, 3, "ranks3", *relaxed), mass=1.85)
+    plain = run_case(tmp_path, BARS, 1, "plain")
+    _, a = history(serial)
+    _, b = history(plain)
+    assert np.nanmax(np.abs(a - b)) > 0             # the relaxation did act
+
+
 def test_bodies_cut_through_their_contact_faces(tmp_path):
     """Two stacked blocks and a wall, Coulomb friction and stick: the partition puts the
     blocks on different ranks or splits a contact face between ranks, and the runs still

@@ -32,6 +32,7 @@ import types
 
 import numpy as np
 
+from ..scheme.limiters import NONE as NO_LIMITER
 from ..scheme.time import STAGES
 
 #: threads per block of every kernel (a power of two: the block sums halve it); the simulator
@@ -50,9 +51,6 @@ def problem(case) -> str | None:
     if not _cuda.is_available():
         return ('run.backend = "cuda": no usable CUDA GPU here (numba-cuda finds no device '
                 'or driver); use backend = "cpu"')
-    if case.run.compatibility_time > 0:
-        return ('run.compatibility_time runs on the cpu backend only, not yet on "cuda"; '
-                'set it to 0 or use backend = "cpu"')
     if case.run.method != "fv":
         return f'run.backend = "cuda" runs the FV method only, not {case.run.method!r}'
     return None
@@ -216,6 +214,22 @@ def _make_kernels(d, m, kind):
             for J in range(d):
                 grad[a, i, J] = g[i, J] * phi
             grad[a, i, d] = phi
+
+    @cuda.jit
+    def relax_towards_positions(F, G, rate, node_edge_start, node_neighbour, dF):
+        # the CPU's kernels.relax_towards_positions, one thread per node
+        a = cuda.grid(1)
+        if a >= rate.shape[0]:
+            return
+        start, stop = node_edge_start[a], node_edge_start[a + 1]
+        weight = 1.0 / (stop - start)
+        for i in range(d):
+            for J in range(d):
+                mean = 0.0
+                for k in range(start, stop):
+                    b = node_neighbour[k]
+                    mean += F[b, i, J] - G[b, i, J]
+                dF[a, i, J] -= rate[a] * (F[a, i, J] - G[a, i, J] - weight * mean)
 
     @cuda.jit
     def zero_rates(force, dF):
@@ -555,6 +569,7 @@ def _make_kernels(d, m, kind):
 
     return types.SimpleNamespace(
         stress_and_fields=stress_and_fields, limited_gradient=limited_gradient,
+        relax_towards_positions=relax_towards_positions,
         zero_rates=zero_rates, interior_fluxes=interior_fluxes,
         boundary_fluxes=boundary_fluxes, rk_update=rk_update,
         energy_rate=energy_rate, body_force=body_force, pack_rows=pack_rows,
@@ -668,6 +683,18 @@ class DeviceState:
                 self.power, self.bc_force)
         if self.contact is not None:
             self.contact.apply()
+        if s.relaxation_rate is not None:
+            # F relaxed towards the gradient of the positions (scheme.stepper)
+            if "G" not in A:
+                A["G"] = self.cuda.device_array(s.position_gradient.shape)
+                A["relaxation_rate"] = self.cuda.to_device(s.relaxation_rate)
+            kernels(m.dim, m.dim, NO_LIMITER).limited_gradient[_blocks(n), THREADS](
+                A["x"], A["node_edge_start"], A["node_neighbour"], A["node_C"],
+                A["node_half"], A["bface_start"], A["bface_others"], A["bface_C"],
+                float(own), float(denominator), A["volume"], A["G"])
+            k.relax_towards_positions[_blocks(n), THREADS](
+                A["F"], A["G"], A["relaxation_rate"], A["node_edge_start"],
+                A["node_neighbour"], A["dF"])
         if s.loads.has_body_force:
             # the power of the body force is summed with the boundary power
             k.body_force[_blocks(n), THREADS](A["force"], self.mass, A["acceleration"],

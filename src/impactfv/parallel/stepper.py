@@ -75,6 +75,9 @@ class ParallelFVStepper(FVStepper):
     def _exchange_gradients(self):
         self.halo.exchange(self.grad)
 
+    def _exchange_position_gradients(self):
+        self.halo.exchange(self.position_gradient)
+
     def _first_bad(self, bad):
         n = self.global_disc.n_nodes
         mine = int(self.part.nodes[bad]) if bad >= 0 else n

@@ -52,9 +52,10 @@ class FVStepper:
         self.relaxation_rate = None
         if beta > 0.0:
             cp = m.material_table[m.node_material, K.CP]
-            self.relaxation_rate = m.volume * cp / (beta * m.node_length)  # Omega_a / tau_a
+            # Omega_a / tau_a of the owned nodes
+            rate = m.volume * cp / (beta * m.node_length)
+            self.relaxation_rate = np.ascontiguousarray(rate[:self.n_owned])
             self.position_gradient = np.zeros((n, d, d + 1))
-            self._incompatibility = np.empty((n, d, d))
         self.loads = Loads(case, m)
         self.time = 0.0
         # state
@@ -239,17 +240,21 @@ class FVStepper:
                                                           - self.reaction_sum @ self.force[:o]))
 
     def _relax_towards_positions(self):
-        """Omega_a dF_a/dt -= (Omega_a / tau_a) (F_a - G_a(x)), with G_a(x) the Green-Gauss
-        gradient of the nodal positions on the node's dual (with the boundary closure, so that
-        it is exact for linear motions and a uniform state stays uniform)."""
+        """Omega_a dF_a/dt -= (Omega_a / tau_a) (D_a - mean over a's neighbours of D_b),
+        D = F - G(x), with G(x) the Green-Gauss gradient of the nodal positions on the
+        node's dual (with the boundary closure, so that it is exact for linear motions and a
+        uniform state stays uniform): only the grid-scale part of the mismatch is relaxed."""
         m = self.disc
         K.limited_gradient(self.x, m.node_edge_start, m.node_neighbour, m.node_C, m.node_half,
                            m.bface_start, m.bface_others, m.bface_C, m.closure, m.volume,
                            LIMITER_IDS["none"], self.position_gradient, self.dim, self.dim)
-        mismatch = self._incompatibility
-        np.subtract(self.F, self.position_gradient[:, :, :m.dim], out=mismatch)
-        mismatch *= self.relaxation_rate[:, None, None]
-        self.dF -= mismatch
+        # the owned nodes' means read their ghost neighbours' gradients (MPI)
+        self._exchange_position_gradients()
+        K.relax_towards_positions(self.F, self.position_gradient, self.relaxation_rate,
+                                  m.node_edge_start, m.node_neighbour, self.dF, self.dim)
+
+    def _exchange_position_gradients(self):
+        pass
 
     def _close_stage(self, stage: int, rate: float, integration: float = 0.0):
         """The stage's power, dissipation and reactions from what rates() left and the energy
