@@ -216,20 +216,20 @@ def _make_kernels(d, m, kind):
             grad[a, i, d] = phi
 
     @cuda.jit
-    def relax_towards_positions(F, G, rate, node_edge_start, node_neighbour, dF):
+    def relax_towards_positions(F, G, weight, owned, node_edge_start, node_neighbour, dF):
         # the CPU's kernels.relax_towards_positions, one thread per node
         a = cuda.grid(1)
-        if a >= rate.shape[0]:
+        if a >= owned:
             return
         start, stop = node_edge_start[a], node_edge_start[a + 1]
-        weight = 1.0 / (stop - start)
         for i in range(d):
             for J in range(d):
-                mean = 0.0
+                Da = F[a, i, J] - G[a, i, J]
+                change = 0.0
                 for k in range(start, stop):
                     b = node_neighbour[k]
-                    mean += F[b, i, J] - G[b, i, J]
-                dF[a, i, J] -= rate[a] * (F[a, i, J] - G[a, i, J] - weight * mean)
+                    change += weight[k] * (Da - F[b, i, J] + G[b, i, J])
+                dF[a, i, J] -= change
 
     @cuda.jit
     def zero_rates(force, dF):
@@ -683,17 +683,17 @@ class DeviceState:
                 self.power, self.bc_force)
         if self.contact is not None:
             self.contact.apply()
-        if s.relaxation_rate is not None:
+        if s.relaxation_weight is not None:
             # F relaxed towards the gradient of the positions (scheme.stepper)
             if "G" not in A:
                 A["G"] = self.cuda.device_array(s.position_gradient.shape)
-                A["relaxation_rate"] = self.cuda.to_device(s.relaxation_rate)
+                A["relaxation_weight"] = self.cuda.to_device(s.relaxation_weight)
             kernels(m.dim, m.dim, NO_LIMITER).limited_gradient[_blocks(n), THREADS](
                 A["x"], A["node_edge_start"], A["node_neighbour"], A["node_C"],
                 A["node_half"], A["bface_start"], A["bface_others"], A["bface_C"],
                 float(own), float(denominator), A["volume"], A["G"])
             k.relax_towards_positions[_blocks(n), THREADS](
-                A["F"], A["G"], A["relaxation_rate"], A["node_edge_start"],
+                A["F"], A["G"], A["relaxation_weight"], n, A["node_edge_start"],
                 A["node_neighbour"], A["dF"])
         if s.loads.has_body_force:
             # the power of the body force is summed with the boundary power

@@ -436,25 +436,26 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
-def relax_towards_positions(F, G, rate, node_edge_start, node_neighbour, dF, dim):
-    """dF_a -= rate_a (D_a - mean over a's edge neighbours b of D_b) at the nodes a of
-    ``rate`` (the owned ones), with D = F - G the mismatch of F and the gradient G of the
-    positions (n, d, >= d; docs/theory.md, "Compatibility relaxation"). Only the grid-scale
-    part of D is relaxed: the neighbour mean removes a uniform D exactly and a smooth one to
-    O(h |grad D|), so that the O(h^2) mismatch of a smooth wave is hardly touched, while the
-    incompatible modes, which change sign from node to node, are relaxed at the full rate
-    or faster."""
+def relax_towards_positions(F, G, weight, owned, node_edge_start, node_neighbour, dF, dim):
+    """dF_a -= sum over a's edge neighbours b of w_ab (D_a - D_b) at the nodes a < owned,
+    with D = F - G the mismatch of F and the gradient G of the positions (n, d, >= d) and
+    w_ab = w_ba the weight of the edge (per slot of node_neighbour; docs/theory.md,
+    "Compatibility relaxation"). A difference operator, so only the grid-scale part of D is
+    relaxed: a uniform D not at all, a smooth one through its O(h |grad D|) differences,
+    while the incompatible modes, which change sign from node to node, are relaxed at the
+    full rate. Symmetric, so its power sum_a P_a : dF_a = -sum over edges
+    w_ab (P_a - P_b) : (D_a - D_b) vanishes for a uniform stress."""
     d = len(dim)
-    for a in prange(rate.shape[0]):
+    for a in prange(owned):
         start, stop = node_edge_start[a], node_edge_start[a + 1]
-        weight = 1.0 / (stop - start)
         for i in range(d):
             for J in range(d):
-                mean = 0.0
+                Da = F[a, i, J] - G[a, i, J]
+                change = 0.0
                 for k in range(start, stop):
                     b = node_neighbour[k]
-                    mean += F[b, i, J] - G[b, i, J]
-                dF[a, i, J] -= rate[a] * (F[a, i, J] - G[a, i, J] - weight * mean)
+                    change += weight[k] * (Da - F[b, i, J] + G[b, i, J])
+                dF[a, i, J] -= change
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)

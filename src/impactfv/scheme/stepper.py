@@ -20,6 +20,22 @@ from .loads import Loads
 from .time import STAGES
 
 
+def relaxation_weights(m, beta):
+    """The edge weights w_ab = w_ba of the compatibility relaxation, per slot of
+    m.node_neighbour: the relaxation rate 1 / tau = c_p / (beta h) (the mean of the two
+    nodes') times the edge's share of the dual volumes, C_ab . (X_b - X_a) / (2 d). The
+    shares are positive on a median dual and sum to Omega_a over a node's edges (the
+    Green-Gauss gradient of X is exact; a boundary face's C is normal to X_face - X_a), so
+    sum_b w_ab = Omega_a / tau_a on a uniform mesh."""
+    cp = m.material_table[m.node_material, K.CP]
+    inverse_time = cp / (beta * m.node_length)
+    counts = np.diff(m.node_edge_start)
+    a = np.repeat(np.arange(len(counts)), counts)
+    b = m.node_neighbour
+    share = np.einsum("kj,kj->k", m.node_C, m.X[b] - m.X[a]) / (2 * m.dim)
+    return np.ascontiguousarray(0.5 * (inverse_time[a] + inverse_time[b]) * share)
+
+
 class FVStepper:
     """Upwind vertex-centred finite volumes (p-F), two-stage TVD Runge-Kutta."""
 
@@ -46,15 +62,13 @@ class FVStepper:
         self.tangential_correction = 1.0 if correction == "full" else 0.0
         # the upwind geometric flux needs the reconstructed tractions to be second order
         self.stress_reconstructed = self.order == 2 and self.upwind_geometric
-        # F relaxed towards the gradient of the positions at the rate 1 / tau_a,
-        # tau_a = compatibility_time h_a / c_p,a (docs/theory.md, "Compatibility relaxation")
+        # the grid-scale part of F's mismatch with the gradient of the positions relaxed at
+        # the rate 1 / tau_a, tau_a = compatibility_time h_a / c_p,a (docs/theory.md,
+        # "Compatibility relaxation")
         beta = float(case.run.compatibility_time)
-        self.relaxation_rate = None
+        self.relaxation_weight = None
         if beta > 0.0:
-            cp = m.material_table[m.node_material, K.CP]
-            # Omega_a / tau_a of the owned nodes
-            rate = m.volume * cp / (beta * m.node_length)
-            self.relaxation_rate = np.ascontiguousarray(rate[:self.n_owned])
+            self.relaxation_weight = relaxation_weights(m, beta)
             self.position_gradient = np.zeros((n, d, d + 1))
         self.loads = Loads(case, m)
         self.time = 0.0
@@ -218,7 +232,7 @@ class FVStepper:
                          self.dF, self.power, self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
-        if self.relaxation_rate is not None:
+        if self.relaxation_weight is not None:
             self._relax_towards_positions()
         power = self.power[0]
         o = self.n_owned
@@ -240,18 +254,20 @@ class FVStepper:
                                                           - self.reaction_sum @ self.force[:o]))
 
     def _relax_towards_positions(self):
-        """Omega_a dF_a/dt -= (Omega_a / tau_a) (D_a - mean over a's neighbours of D_b),
+        """Omega_a dF_a/dt -= sum over a's edge neighbours b of w_ab (D_a - D_b),
         D = F - G(x), with G(x) the Green-Gauss gradient of the nodal positions on the
         node's dual (with the boundary closure, so that it is exact for linear motions and a
-        uniform state stays uniform): only the grid-scale part of the mismatch is relaxed."""
+        uniform state stays uniform) and w_ab = w_ba (relaxation_weights): only the
+        grid-scale part of the mismatch is relaxed, and a uniform stress does no work on it."""
         m = self.disc
         K.limited_gradient(self.x, m.node_edge_start, m.node_neighbour, m.node_C, m.node_half,
                            m.bface_start, m.bface_others, m.bface_C, m.closure, m.volume,
                            LIMITER_IDS["none"], self.position_gradient, self.dim, self.dim)
-        # the owned nodes' means read their ghost neighbours' gradients (MPI)
+        # the owned nodes' differences read their ghost neighbours' gradients (MPI)
         self._exchange_position_gradients()
-        K.relax_towards_positions(self.F, self.position_gradient, self.relaxation_rate,
-                                  m.node_edge_start, m.node_neighbour, self.dF, self.dim)
+        K.relax_towards_positions(self.F, self.position_gradient, self.relaxation_weight,
+                                  self.n_owned, m.node_edge_start, m.node_neighbour, self.dF,
+                                  self.dim)
 
     def _exchange_position_gradients(self):
         pass
