@@ -72,7 +72,7 @@ def test_compatibility_relaxation_keeps_smooth_waves_second_order_and_takes_litt
     grid-scale part of F's mismatch with the gradient of the positions: on the smooth
     standing wave the observed orders stay above 1.8 at beta = 30, and the energy lost in
     half a period at n = 64 rises above the 3.4e-5 lost without it by less than half, less
-    at beta = 100 (measured: orders 1.83 / 1.96; lost 4.8e-5 at 30, 3.8e-5 at 100; relaxing
+    at beta = 100 (measured: orders 1.85 / 1.93; lost 4.8e-5 at 30, 3.8e-5 at 100; relaxing
     all of the mismatch, as first built, lost 2.1e-4 at 100). The relaxation never feeds the
     wave: relaxing each node's mismatch less its neighbour mean, as built before, lost only
     2.3e-5 because its power was positive there."""

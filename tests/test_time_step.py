@@ -169,6 +169,15 @@ def prestressed_block(geometric, stretch, compatibility_time=0.0, dim=2):
     return FVStepper(load_case(case)), F0, sigma
 
 
+def rigid_rotation_rate(st, F0, sigma):
+    """Growth rate sqrt(12 |sigma11| / (rho (L^2 + t^2))) of the rigid rotation of the
+    prestressed block (compressed along x by its dead loads) in a plane containing x, with
+    L and t its current length and thickness."""
+    rho = st.disc.material_table[0, 0]
+    length, thickness = 0.004 * F0[0, 0], 0.002 * F0[1, 1]
+    return np.sqrt(12 * -sigma[0, 0] / (rho * (length ** 2 + thickness ** 2)))
+
+
 @pytest.mark.parametrize("geometric", ["upwind", "central"])
 def test_compression_makes_the_upwind_geometric_flux_grow_a_mode_per_node(geometric):
     """Why compressed free surfaces wrinkle at h = 0.1 mm (docs/theory.md, "Stability under
@@ -183,9 +192,7 @@ def test_compression_makes_the_upwind_geometric_flux_grow_a_mode_per_node(geomet
     st, F0, sigma = prestressed_block(geometric, 0.9)
     lam = np.sort(np.linalg.eigvals(jacobian(st, F0)).real)[::-1]
     dt = st.stable_dt()
-    length, thickness = 0.004 * F0[0, 0], 0.002 * F0[1, 1]
-    rho = st.disc.material_table[0, 0]
-    rotation = np.sqrt(12 * -sigma[0, 0] / (rho * (length ** 2 + thickness ** 2)))
+    rotation = rigid_rotation_rate(st, F0, sigma)
     assert lam[0] == pytest.approx(rotation, rel=0.1)
     fast = int(np.sum(lam[1:] * dt > 1e-4))
     if geometric == "central":
@@ -246,9 +253,7 @@ def test_compatibility_relaxation_removes_the_compression_modes(compatibility_ti
     assert np.abs(st.dF / m.volume[:, None, None]).max() < 1e-9 * cp / h
     lam = np.sort(np.linalg.eigvals(J).real)[::-1]
     dt = st.stable_dt()
-    length, thickness = 0.004 * F0[0, 0], 0.002 * F0[1, 1]
-    rho = m.material_table[0, 0]
-    rotation = np.sqrt(12 * -sigma[0, 0] / (rho * (length ** 2 + thickness ** 2)))
+    rotation = rigid_rotation_rate(st, F0, sigma)
     assert lam[0] == pytest.approx(rotation, rel=0.1)
     growing = int(np.sum(lam[1:] * dt > 1e-6))
     if compatibility_time == 0.0:
@@ -293,9 +298,7 @@ def test_compatibility_relaxation_removes_the_compression_modes_in_3d(compatibil
     st, F0, sigma = prestressed_block("upwind", 0.9, compatibility_time, dim=3)
     lam = np.sort(np.linalg.eigvals(jacobian_with_positions(st, F0)).real)[::-1]
     dt = st.stable_dt()
-    rho = st.disc.material_table[0, 0]
-    length, thickness = 0.004 * F0[0, 0], 0.002 * F0[1, 1]
-    rotation = np.sqrt(12 * -sigma[0, 0] / (rho * (length ** 2 + thickness ** 2)))
+    rotation = rigid_rotation_rate(st, F0, sigma)
     assert lam[:2] == pytest.approx([rotation, rotation], rel=0.1)
     growing = int(np.sum(lam[2:] * dt > 1e-6))
     if compatibility_time == 0.0:
