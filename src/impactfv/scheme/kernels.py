@@ -402,15 +402,18 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
         for J in range(d):
             N[J] = bface_C[h, J] / ln
         # interior state on the face: (own u_a + sum of the other facet nodes) / denominator
+        # (the facet's other nodes by index: a view bface_others[h] would cost a reference
+        # count in this serial loop, twice the time of the face)
         for i in range(d):
             vi[i] = own * v[a, i]
-            for o in bface_others[h]:
-                vi[i] += v[o, i]
+            for q in range(d - 1):
+                vi[i] += v[bface_others[h, q], i]
             vi[i] /= denominator
             for J in range(d):
                 Fi[i, J] = own * F[a, i, J]
                 Si[i, J] = own * sigma[a, i, J]
-                for o in bface_others[h]:
+                for q in range(d - 1):
+                    o = bface_others[h, q]
                     Fi[i, J] += F[o, i, J]
                     Si[i, J] += sigma[o, i, J]
                 Fi[i, J] /= denominator
