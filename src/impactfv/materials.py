@@ -207,6 +207,39 @@ def cauchy_stress(F, props, sigma):
     return c * (1.0 - trb / 3.0) + p if d == 2 else 0.0
 
 
+def cauchy_stress_and_energy(F, props, sigma):
+    """:func:`cauchy_stress` into sigma, and returns :func:`strain_energy_density` of the same
+    F, with one power of J for both (J^(-2/3) = J J^(-5/3)): the stress exactly as
+    cauchy_stress gives it, the energy equal to strain_energy_density's to round-off."""
+    d = F.shape[0]
+    mu = props[MU]
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        cauchy_stress(F, props, sigma)
+        return strain_energy_density(F, props)
+    for i in range(d):
+        for k in range(d):
+            b = 0.0
+            for J in range(d):
+                b += F[i, J] * F[k, J]
+            sigma[i, k] = b
+    trb = 0.0
+    for i in range(d):
+        trb += sigma[i, i]
+    trb += 3.0 - d
+    J_ = determinant(F)
+    j53 = J_ ** (-5.0 / 3.0)
+    c = mu * j53
+    p = props[KAPPA] * (J_ - 1.0)
+    for i in range(d):
+        for k in range(d):
+            if i == k:
+                sigma[i, k] = c * (sigma[i, k] - trb / 3.0) + p
+            else:
+                sigma[i, k] = c * sigma[i, k]
+    # tr(b3) = F3 : F3 (plane strain adds the out-of-plane 1), as strain_energy_density
+    return 0.5 * mu * (j53 * J_) * trb - 1.5 * mu + 0.5 * props[KAPPA] * (J_ - 1.0) ** 2
+
+
 def pressure_and_von_mises(F, props, sigma):
     """Mean pressure -tr(sigma)/3 (compression positive; plane strain includes sigma_zz) and
     the von Mises stress. ``sigma`` is d x d scratch."""

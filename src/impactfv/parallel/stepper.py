@@ -65,7 +65,11 @@ class ParallelFVStepper(FVStepper):
         return self.comm.allreduce(float(value), op=self.MPI.MIN)
 
     def _begin_state_exchange(self):
-        self._pending = self.halo.begin(self.v, self.F, self.x)
+        # after the last stage the owned stresses are the new state's (carried to the next
+        # step, FVStepper._stress_carried): the ghosts take their owners' with the state,
+        # so that every rank uses one stress per node, the serial run's
+        carried = (self.sigma,) if self._stress_carried else ()
+        self._pending = self.halo.begin(self.v, self.F, self.x, *carried)
 
     def _end_state_exchange(self):
         if self._pending is not None:
@@ -129,6 +133,8 @@ class ParallelFVStepper(FVStepper):
 
     def state_arrays(self):
         arrays = super().state_arrays()
+        # the carried stress is this rank's; a restart (on any number of ranks) computes it
+        arrays.pop("sigma", None)
         for name in ("v", "F", "x"):
             arrays[name] = self._global(getattr(self, name))
         return arrays
@@ -136,6 +142,7 @@ class ParallelFVStepper(FVStepper):
     def restore(self, arrays):
         G = self.global_disc
         local = dict(arrays)
+        local.pop("sigma", None)
         for name in ("v", "F", "x"):
             a = arrays[name]
             if a.shape[0] != G.n_nodes:

@@ -28,6 +28,7 @@ from . import time as T
 
 cauchy_stress = point(M.cauchy_stress)
 strain_energy_density = point(M.strain_energy_density)
+cauchy_stress_and_energy = point(M.cauchy_stress_and_energy)
 pressure_and_von_mises = point(M.pressure_and_von_mises)
 min_stretch = point(M.min_stretch)
 determinant = point(_determinant)
@@ -260,9 +261,11 @@ def _reconstruct_stress(sigma, grad, a, b, sign, e, half, stress_reconstructed, 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-               use_reconstruction, stress_reconstructed, upwind_geometric, bias, force, dF, d,
-               Fe, Sa, Sb, work):
-    """Upwind traction (seed eq. 9a) and geometric velocity (9b) of interior edge e.
+               use_reconstruction, stress_reconstructed, upwind_geometric, bias, force_a,
+               dF_a, force, dF, d, Fe, Sa, Sb, work):
+    """Upwind traction (seed eq. 9a) and geometric velocity (9b) of interior edge e:
+    added to its first node's running sums force_a, dF_a (held by the caller while it
+    walks that node's edges) and subtracted from its second node's rows of force, dF.
 
     Both sides' tractions are sigma n da/dA with the face's own normal n and area ratio
     (from the mean F of the edge), so a rigid rotation of a stressed state makes no traction
@@ -312,13 +315,13 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
         tjump[i] = tb[i] - ta[i]
     upwind_traction(tbar, w, zp, zs, n, t)
     for i in range(d):
-        force[a, i] += t[i] * ln
+        force_a[i] += t[i] * ln
         force[b, i] -= t[i] * ln
     if upwind_geometric:
         upwind_velocity(va, vb, tjump, zp, u)
     for i in range(d):
         for J in range(d):
-            dF[a, i, J] += u[i] * C[e, J]
+            dF_a[i, J] += u[i] * C[e, J]
             dF[b, i, J] -= u[i] * C[e, J]
 
 
@@ -330,10 +333,35 @@ def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len
     Sa = local_matrix(d)
     Sb = local_matrix(d)
     work = local_rows(11, d)
+    # a group's edges come sorted by their first node (Discretisation.partition_edges), so
+    # each node's own sums stay in registers while its edges are walked: loaded once and
+    # stored once, in the same order of additions as one edge at a time
+    force_a = local_vector(d)
+    dF_a = local_matrix(d)
+    current = -1
     for e in range(edge_offsets[k], edge_offsets[k + 1]):
+        a = edges[e, 0]
+        if a != current:
+            if current >= 0:
+                _store_node_sums(force_a, dF_a, force, dF, current, d)
+            for i in range(d):
+                force_a[i] = force[a, i]
+                for J in range(d):
+                    dF_a[i, J] = dF[a, i, J]
+            current = a
         _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-                   use_reconstruction, stress_reconstructed, upwind_geometric, bias, force, dF,
-                   d, Fe, Sa, Sb, work)
+                   use_reconstruction, stress_reconstructed, upwind_geometric, bias, force_a,
+                   dF_a, force, dF, d, Fe, Sa, Sb, work)
+    if current >= 0:
+        _store_node_sums(force_a, dF_a, force, dF, current, d)
+
+
+@njit(cache=True, inline="always")
+def _store_node_sums(force_a, dF_a, force, dF, a, d):
+    for i in range(d):
+        force[a, i] = force_a[i]
+        for J in range(d):
+            dF[a, i, J] = dF_a[i, J]
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
@@ -516,12 +544,17 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
                    contact_xdot, node_material, table, volume, fixed_mask, fixed_value,
-                   node_length, body_start, with_monitors, out, dim):
+                   node_length, body_start, with_monitors, out, carry, U, dim):
     """The last Runge-Kutta stage (as :func:`rk_update`) fused with what the time loop needs
     of the new state, computed while it is still in registers: the stable time step of the
     next step (as :func:`stable_time_step`), the first node with a non-finite state or
-    J <= 0 (as :func:`state_is_bad`) and, with ``with_monitors``, the energies and momentum
-    of each body into ``out`` (as :func:`monitors`, summed in the same order).
+    J <= 0 (as :func:`state_is_bad`), with ``with_monitors`` the energies and momentum
+    of each body into ``out`` (as :func:`monitors`, summed in the same order) and, with
+    ``carry`` 1, the Cauchy stress of the new state into sigma (as :func:`compute_stress`,
+    for the next step's first stage), with ``carry`` 2 the stress and the packed fields U as
+    :func:`stress_and_fields` writes them. The stress and the strain energy share one power
+    of J (materials.cauchy_stress_and_energy). sigma is read (the stage's stress, for the
+    energy rate) before the node's new stress is written.
 
     Returns (min over nodes of h_a lambda_min,a / c_p,a, index of the first bad node or -1,
     the energy rate of the stage's state as :func:`rk_update` returns it, the energy the
@@ -578,13 +611,25 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
             if not (finite and np.isfinite(jac) and jac > 0.0):
                 first_bad = min(first_bad, a)
             smallest = min(smallest, node_length[a] * min_stretch(Fa) / props[CP])
+            energy = 0.0
+            if carry > 0:
+                sa = local_matrix(d)
+                energy = cauchy_stress_and_energy(Fa, props, sa)
+                store_matrix(sa, sigma, a)
+                if carry == 2:
+                    for i in range(d):
+                        U[a, i] = va[i]
+                        for j in range(i, d):
+                            U[a, d + symmetric_index(i, j, d)] = sa[i, j]
+            elif with_monitors:
+                energy = strain_energy_density(Fa, props)
             if with_monitors:
                 mass = props[RHO] * volume[a]
                 v2 = 0.0
                 for i in range(d):
                     v2 += va[i] * va[i]
                 kinetic += 0.5 * mass * v2
-                strain += volume[a] * strain_energy_density(Fa, props)
+                strain += volume[a] * energy
                 p0 += mass * va[0]
                 p1 += mass * va[1]
                 if d == 3:

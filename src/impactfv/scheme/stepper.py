@@ -95,6 +95,10 @@ class FVStepper:
         self._next_dt = None
         self._bad = None
         self._monitors_fresh = False
+        # sigma (and U) of the owned nodes are those of the current state: the next step's
+        # first stage need not compute them (code that writes v, F or x outside the stepper's
+        # own methods calls _forget_state_values)
+        self._stress_carried = False
         #: set by the time loop before a step: whether a history row follows it (the
         #: monitors are then computed in the last stage's pass; otherwise on demand)
         self.history_due = True
@@ -200,18 +204,25 @@ class FVStepper:
         self.reaction = np.zeros((len(self.reaction_rows), d))
 
     # ------------------------------------------------------------------ one step
-    def rates(self, stage=0):
+    def rates(self, stage=0, stress_carried=False):
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
         state, at the stage's time (the loads are brought to it by the caller), and this
         rank's boundary power and reactions of the stage, which _close_stage completes with
-        the energy rate of the Runge-Kutta update."""
+        the energy rate of the Runge-Kutta update. ``stress_carried``: the owned nodes'
+        sigma (and U) are those of the current state already (written by the last stage of
+        the step that made it, kernels.rk_update_last)."""
         m = self.disc
         # under MPI the owned nodes' stresses are computed while their ghosts' states arrive
         o = self.n_owned
-        self._stresses(slice(0, o))
+        if not stress_carried:
+            self._stresses(slice(0, o))
         self._end_state_exchange()
         if o < m.n_nodes:
-            self._stresses(slice(o, None))
+            if not stress_carried:
+                self._stresses(slice(o, None))
+            elif self.stress_reconstructed:
+                # the ghosts' carried stress came with their state (ParallelStepper)
+                K.pack_velocity_and_stress(self.v[o:], self.sigma[o:], self.U[o:], self.dim)
         if self.order == 2:
             K.limited_gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C,
                                m.node_half, m.bface_start, m.bface_others, m.bface_C,
@@ -313,6 +324,7 @@ class FVStepper:
         self._next_dt = None
         self._bad = None
         self._monitors_fresh = False
+        self._stress_carried = False
 
     def _host(self):
         """Bring the host copies of v, F, x up to date (CUDA backend)."""
@@ -378,6 +390,9 @@ class FVStepper:
     def _host_step(self, dt: float):
         m = self.disc
         loads = self.loads
+        # the last stage of the previous step left the stress of this state (unless a
+        # restore or _forget_state_values came since)
+        carried = self._stress_carried
         self.v0[:] = self.v
         self.F0[:] = self.F
         self.x0[:] = self.x
@@ -390,7 +405,7 @@ class FVStepper:
         last = len(STAGES) - 1
         for stage, alpha in enumerate(STAGES):
             loads.at(t + (dt if stage else 0.0))
-            self.rates(stage)
+            self.rates(stage, carried and stage == 0)
             # both stages end at t + dt (Heun), where the prescribed velocities are imposed
             loads.at(t + dt)
             # the owned nodes (all of them in a serial run)
@@ -407,7 +422,9 @@ class FVStepper:
             # history row follows) the monitors, in the same pass over the nodes
             smallest, bad, rate, integration = K.rk_update_last(
                 alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
-                m.body_start, bool(self.history_due), self.monitor_buf, self.dim)
+                m.body_start, bool(self.history_due), self.monitor_buf,
+                2 if self.stress_reconstructed else 1, self.U[:o], self.dim)
+            self._stress_carried = True
             self._begin_state_exchange()
             self._close_stage(stage, rate, integration)
             self._next_dt = self.cfl * self._min(smallest)
@@ -537,6 +554,10 @@ class FVStepper:
                   "integration": np.array(self.integration), "reaction": self.reaction}
         if self.contact is not None:
             arrays["contact_memory"] = self.contact.memory
+        if self._stress_carried:
+            # the stress the last stage computed for the next step (kernels.rk_update_last):
+            # the continued run uses it as the uninterrupted one does, to the last bit
+            arrays["sigma"] = self.sigma
         return arrays
 
     def restore(self, arrays) -> None:
@@ -548,6 +569,14 @@ class FVStepper:
                                  f"{target.shape}")
             target[:] = arrays[name]
         self._forget_state_values()
+        # (a checkpoint without it, or with a stress that is not finite: computed again)
+        carried = arrays.get("sigma")
+        if carried is not None and carried.shape == self.sigma.shape \
+                and self.device is None and np.all(np.isfinite(carried)):
+            self.sigma[:] = carried
+            if self.stress_reconstructed:
+                K.pack_velocity_and_stress(self.v, self.sigma, self.U, self.dim)
+            self._stress_carried = True
         if self.device is not None:
             self.device.from_host()
             self._host_stale = False
