@@ -145,3 +145,46 @@ def test_standing_wave_on_the_cube_converges_at_second_order_full():
     for field in (1, 2):
         assert all(b[field] < a[field] for a, b in zip(rows, rows[1:])), rows
     assert rates[-1][0] >= 1.8 and rates[-1][1] >= 1.8, (rows, rates)
+
+
+def test_stretch_bounds_enclose_the_smallest_stretch():
+    """The last stage's bounds on the smallest principal stretch (materials.min_stretch_bounds:
+    lo = sqrt(q - 2p), hi = the smallest diagonal entry of C, square-rooted) enclose
+    min_stretch for deformations near and far from the identity, rotated or not, with equal
+    eigenvalues included; lo is the value itself when the two larger stretches are equal
+    (uniaxial compression), which is what lets the time step skip nearly every node."""
+    from impactfv.materials import min_stretch, min_stretch_bounds
+    rng = np.random.default_rng(7)
+    samples = [np.eye(3), np.diag([0.9, 1.0, 1.0]), np.diag([0.9, 0.9, 1.0]),
+               np.diag([1.2, 0.7, 1.0]), 1.3 * np.eye(3)]
+    for scale in (1e-6, 1e-3, 0.1, 0.5):
+        for _ in range(200):
+            samples.append(np.eye(3) + scale * rng.standard_normal((3, 3)))
+    for F in list(samples):
+        Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+        samples.append(Q @ F)
+    for F in samples:
+        lo, hi = min_stretch_bounds(F)
+        m = min_stretch(F)
+        exact = np.sqrt(np.linalg.eigvalsh(F.T @ F)[0])
+        assert m == pytest.approx(exact, rel=1e-7, abs=1e-12)
+        assert lo <= m <= hi * (1 + 1e-15), F
+    lo, _ = min_stretch_bounds(np.diag([0.9, 1.0, 1.0]))
+    assert lo == pytest.approx(0.9, rel=1e-11)
+
+
+def test_time_step_from_the_bounds_equals_every_node_evaluated():
+    """In 3D the last stage evaluates the smallest stretch only at the nodes whose lower bound
+    can give the minimum (kernels.smallest_time_step_of_candidates): the stable time step is
+    the one of evaluating every node (kernels.stable_time_step), to the last bit, step after
+    step of a deforming, spinning block."""
+    from impactfv.scheme import kernels as K
+    case = box_case(divisions=(6, 5, 4), velocity=("30*sin(900*x)", "-800*z", "800*y + 20*x"),
+                    end_time=1e-6)
+    s = FVStepper(load_case(case))
+    m = s.disc
+    for _ in range(12):
+        s.step(s.stable_dt())
+        every = s.cfl * K.stable_time_step(s.F, m.node_material, m.material_table,
+                                           m.node_length, s.dim)
+        assert s.stable_dt() == every

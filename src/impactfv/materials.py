@@ -23,7 +23,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .tensors import cofactor_entry, determinant, smallest_stretch_squared, stress_power
+from .tensors import (cofactor_entry, determinant, smallest_stretch_squared,
+                      smallest_stretch_squared_bounds, stress_power)
 
 NEO_HOOKEAN = 0
 LINEAR_ELASTIC = 1
@@ -258,6 +259,20 @@ def pressure_and_von_mises(F, props, sigma):
     if d == 2:
         ss += (s_zz - tr / 3.0) ** 2
     return p, math.sqrt(max(1.5 * ss, 0.0))
+
+
+#: the lower bound of min_stretch_bounds, scaled down by this much against the rounding of
+#: both it and min_stretch (which agree to a few ulps where they coincide)
+STRETCH_BOUND_SAFETY = 1.0 - 1e-12
+
+
+def min_stretch_bounds(F):
+    """(lo, hi) with lo <= min_stretch(F) <= hi, in 3D from bounds on the smallest eigenvalue
+    of C (tensors.smallest_stretch_squared_bounds) without its trigonometric solution: what
+    the smallest time step over many nodes needs to skip the nodes that cannot give it."""
+    lo2, hi2 = smallest_stretch_squared_bounds(F)
+    lo = math.sqrt(lo2) * STRETCH_BOUND_SAFETY if lo2 > 0.0 else 0.0
+    return lo, math.sqrt(max(hi2, 0.0))
 
 
 def min_stretch(F):

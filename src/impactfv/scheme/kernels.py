@@ -31,6 +31,7 @@ strain_energy_density = point(M.strain_energy_density)
 cauchy_stress_and_energy = point(M.cauchy_stress_and_energy)
 pressure_and_von_mises = point(M.pressure_and_von_mises)
 min_stretch = point(M.min_stretch)
+min_stretch_bounds = point(M.min_stretch_bounds)
 determinant = point(_determinant)
 strain_power = point(M.strain_power)
 symmetric_index = point(_symmetric_index)
@@ -511,8 +512,11 @@ def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, d):
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
-              contact_xdot, node_material, table, volume, fixed_mask, fixed_value, dim):
-    """One Runge-Kutta stage for v, F and x at every node (scheme.time.rk_stage).
+              contact_xdot, node_material, table, volume, fixed_mask, fixed_value, save_start,
+              dim):
+    """One Runge-Kutta stage for v, F and x at every node (scheme.time.rk_stage). With
+    ``save_start`` (the first stage) the state it starts from is first copied into v0, F0,
+    x0, in the same pass.
 
     Positions move with the nodal velocity, or at contact nodes with their contact velocity;
     prescribed velocity components are imposed strongly. Returns the rate of the nodes'
@@ -527,6 +531,12 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
         inv_volume = 1.0 / volume[a]
         inv_mass = inv_volume / table[node_material[a], RHO]
         in_contact = contact_state[a] != 0
+        if save_start:
+            for i in range(d):
+                x0[a, i] = x[a, i]
+                v0[a, i] = v[a, i]
+                for J in range(d):
+                    F0[a, i, J] = F[a, i, J]
         for i in range(d):
             xdot = contact_xdot[a, i] if in_contact else v[a, i]
             x[a, i] = rk_stage(alpha, x0[a, i], x[a, i], dt, xdot)
@@ -544,7 +554,7 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
                    contact_xdot, node_material, table, volume, fixed_mask, fixed_value,
-                   node_length, body_start, with_monitors, out, carry, U, dim):
+                   node_length, body_start, with_monitors, out, carry, U, bound, dim):
     """The last Runge-Kutta stage (as :func:`rk_update`) fused with what the time loop needs
     of the new state, computed while it is still in registers: the stable time step of the
     next step (as :func:`stable_time_step`), the first node with a non-finite state or
@@ -555,6 +565,12 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
     :func:`stress_and_fields` writes them. The stress and the strain energy share one power
     of J (materials.cauchy_stress_and_energy). sigma is read (the stage's stress, for the
     energy rate) before the node's new stress is written.
+
+    In 3D the smallest principal stretch (the trigonometric solution of a cubic) is not
+    evaluated here: the first value returned is then the smallest of upper bounds of
+    h_a lambda_min,a / c_p,a, and ``bound`` receives each node's lower bound;
+    :func:`smallest_time_step_of_candidates` completes the time step from the few nodes
+    whose lower bound does not exceed that (materials.min_stretch_bounds).
 
     Returns (min over nodes of h_a lambda_min,a / c_p,a, index of the first bad node or -1,
     the energy rate of the stage's state as :func:`rk_update` returns it, the energy the
@@ -610,7 +626,12 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
             jac = determinant(Fa)
             if not (finite and np.isfinite(jac) and jac > 0.0):
                 first_bad = min(first_bad, a)
-            smallest = min(smallest, node_length[a] * min_stretch(Fa) / props[CP])
+            if d == 3:
+                lower, upper = min_stretch_bounds(Fa)
+                bound[a] = node_length[a] * lower / props[CP]
+                smallest = min(smallest, node_length[a] * upper / props[CP])
+            else:
+                smallest = min(smallest, node_length[a] * min_stretch(Fa) / props[CP])
             energy = 0.0
             if carry > 0:
                 sa = local_matrix(d)
@@ -642,6 +663,24 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
             if d == 3:
                 out[k, 4] = p2
     return smallest, (first_bad if first_bad < n else -1), total, integration
+
+
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def smallest_time_step_of_candidates(F, node_material, table, node_length, bound, upper, dim):
+    """min over nodes of h_a lambda_min,a / c_p,a (as :func:`stable_time_step`), given a
+    lower bound of each node's value (``bound``) and an upper bound of the minimum
+    (``upper``, the smallest of the nodes' upper bounds; :func:`rk_update_last`): only the
+    nodes whose lower bound does not exceed it can give the minimum, and only they are
+    evaluated. The same minimum, to the last bit, as evaluating every node."""
+    d = len(dim)
+    smallest = np.inf
+    for a in prange(F.shape[0]):
+        if bound[a] <= upper:
+            Fa = local_matrix(d)
+            load_matrix(F, a, Fa)
+            smallest = min(smallest, node_length[a] * min_stretch(Fa)
+                           / table[node_material[a], CP])
+    return smallest
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)

@@ -89,6 +89,8 @@ class FVStepper:
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
+        # 3D: each node's lower bound of h lambda_min / c_p (kernels.rk_update_last)
+        self.stretch_bound = np.empty(n if d == 3 else 0)
         # what the last stage computed of the new state (rk_update_last): the next stable
         # time step, the first bad node, the monitors; None / False when not computed for
         # the current state
@@ -393,9 +395,8 @@ class FVStepper:
         # the last stage of the previous step left the stress of this state (unless a
         # restore or _forget_state_values came since)
         carried = self._stress_carried
-        self.v0[:] = self.v
-        self.F0[:] = self.F
-        self.x0[:] = self.x
+        # the start of the step (v0, F0, x0) is saved by the first stage's update
+        # (kernels.rk_update), in its pass over the nodes
         self.dt = dt
         t = self.time
         o = self.n_owned
@@ -414,7 +415,8 @@ class FVStepper:
                                           self.contact_xdot, m.node_material))
             node_data = tuple(a[:o] for a in (m.volume, m.fixed_mask, loads.fixed_value))
             if stage < last:
-                rate = K.rk_update(alpha, dt, *nodal, m.material_table, *node_data, self.dim)
+                rate = K.rk_update(alpha, dt, *nodal, m.material_table, *node_data,
+                                   stage == 0, self.dim)
                 self._begin_state_exchange()
                 self._close_stage(stage, rate)
                 continue
@@ -423,7 +425,13 @@ class FVStepper:
             smallest, bad, rate, integration = K.rk_update_last(
                 alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
                 m.body_start, bool(self.history_due), self.monitor_buf,
-                2 if self.stress_reconstructed else 1, self.U[:o], self.dim)
+                2 if self.stress_reconstructed else 1, self.U[:o], self.stretch_bound[:o],
+                self.dim)
+            if self.disc.dim == 3:
+                # the last stage gave an upper bound of the minimum and each node's lower bound
+                smallest = K.smallest_time_step_of_candidates(
+                    self.F[:o], m.node_material[:o], m.material_table, m.node_length[:o],
+                    self.stretch_bound[:o], smallest, self.dim)
             self._stress_carried = True
             self._begin_state_exchange()
             self._close_stage(stage, rate, integration)
