@@ -120,3 +120,33 @@ def test_parallel_edge_blocks_match_the_serial_loop(block, blocks):
     (f1, d1), (f2, d2) = results
     assert np.allclose(f1, f2, rtol=0, atol=1e-9 * np.abs(f1).max())
     assert np.allclose(d1, d2, rtol=0, atol=1e-12 * np.abs(d1).max())
+
+
+@pytest.mark.parametrize("order, geometric_flux", [(2, "upwind"), (2, "central"), (1, "upwind")])
+def test_last_stage_leaves_the_stress_of_the_new_state(block, order, geometric_flux):
+    """The last Runge-Kutta stage computes the new state's Cauchy stress (and the packed
+    fields the gradient reads) for the next step's first stage (docs/architecture.md, "The
+    time loop and the last stage"): after a step sigma is the stress of the new F, and U
+    holds the new v and that stress, to round-off; and the run equals one whose every step
+    computes its stresses afresh (the carried stress forgotten before each step)."""
+    from impactfv.scheme import kernels as K
+    case = block(velocity=("40*sin(600*x)", "-30*x + 20*y"), end_time=1e-6, order=order,
+                 geometric_flux=geometric_flux)
+    carried, fresh = FVStepper(load_case(case)), FVStepper(load_case(case))
+    m = carried.disc
+    for _ in range(6):
+        dt = carried.stable_dt()
+        carried.step(dt)
+        fresh._forget_state_values()
+        fresh.step(dt)
+        sigma = np.empty_like(carried.sigma)
+        K.compute_stress(carried.F, m.node_material, m.material_table, sigma, carried.dim)
+        scale = np.abs(sigma).max()
+        assert scale > 1e6
+        assert np.abs(carried.sigma - sigma).max() < 1e-13 * scale
+        if carried.stress_reconstructed:
+            assert np.array_equal(carried.U[:, :2], carried.v)
+            assert np.array_equal(carried.U[:, 2:], carried.sigma[:, [0, 0, 1], [0, 1, 1]])
+    for name in ("v", "F", "x"):
+        a, b = getattr(carried, name), getattr(fresh, name)
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
