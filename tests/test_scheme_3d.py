@@ -156,21 +156,31 @@ def test_stretch_bounds_enclose_the_smallest_stretch():
     from impactfv.materials import min_stretch, min_stretch_bounds
     rng = np.random.default_rng(7)
     samples = [np.eye(3), np.diag([0.9, 1.0, 1.0]), np.diag([0.9, 0.9, 1.0]),
-               np.diag([1.2, 0.7, 1.0]), 1.3 * np.eye(3)]
+               np.diag([1.2, 0.7, 1.0]), 1.3 * np.eye(3), np.diag([0.005, 1.0, 1.0]),
+               np.diag([0.02, 0.5, 1.5]), np.diag([1e-3, 1e-3, 2.0])]
     for scale in (1e-6, 1e-3, 0.1, 0.5):
         for _ in range(200):
             samples.append(np.eye(3) + scale * rng.standard_normal((3, 3)))
+    # strong compression (stretches down to 1e-3 of the largest), where the rounding of the
+    # bounds and of the trigonometric solution is largest against lambda_min
+    for _ in range(400):
+        Q1, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+        Q2, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+        samples.append(Q1 @ np.diag(np.exp(rng.uniform(np.log(1e-3), np.log(2.0), 3))) @ Q2)
     for F in list(samples):
         Q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
         samples.append(Q @ F)
     for F in samples:
         lo, hi = min_stretch_bounds(F)
         m = min_stretch(F)
-        exact = np.sqrt(np.linalg.eigvalsh(F.T @ F)[0])
-        assert m == pytest.approx(exact, rel=1e-7, abs=1e-12)
+        C = F.T @ F
+        # min_stretch's own rounding, in lambda^2 against the mean eigenvalue q: a tenth of
+        # the bounds' slack (near a double eigenvalue the arccosine loses half the digits)
+        q = np.trace(C) / 3
+        assert abs(m ** 2 - np.linalg.eigvalsh(C)[0]) <= 1e-7 * q
         assert lo <= m <= hi * (1 + 1e-15), F
-    lo, _ = min_stretch_bounds(np.diag([0.9, 1.0, 1.0]))
-    assert lo == pytest.approx(0.9, rel=1e-11)
+    lo, hi = min_stretch_bounds(np.diag([0.9, 1.0, 1.0]))
+    assert lo == pytest.approx(0.9, rel=1e-6) and hi == pytest.approx(0.9, rel=1e-6)
 
 
 def test_time_step_from_the_bounds_equals_every_node_evaluated():
@@ -188,3 +198,28 @@ def test_time_step_from_the_bounds_equals_every_node_evaluated():
         every = s.cfl * K.stable_time_step(s.F, m.node_material, m.material_table,
                                            m.node_length, s.dim)
         assert s.stable_dt() == every
+
+
+def test_time_step_from_the_bounds_at_strongly_compressed_nodes():
+    """The same equality through the stepper's last stage when the nodes' deformations are
+    far apart and strongly compressed (principal stretches from 1e-3 to 2, each node its
+    own): the bounds' slack covers the rounding of the trigonometric solution there (with a
+    margin relative to lambda_min alone, such a state gave an infinite time step)."""
+    from impactfv.scheme import kernels as K
+    s = FVStepper(load_case(box_case(divisions=(6, 5, 4))))
+    m = s.disc
+    rng = np.random.default_rng(11)
+    for trial in range(3):
+        n = m.n_nodes
+        Q1 = np.linalg.qr(rng.standard_normal((n, 3, 3)))[0]
+        Q2 = np.linalg.qr(rng.standard_normal((n, 3, 3)))[0]
+        low = 1e-3 if trial else 0.3
+        stretches = np.exp(rng.uniform(np.log(low), np.log(2.0), (n, 3)))
+        s.F[:] = Q1 @ (stretches[:, :, None] * Q2)
+        s.F[np.linalg.det(s.F) < 0] *= -1.0      # J > 0
+        s.v[:] = 0.0
+        s._forget_state_values()
+        s.step(1e-16)
+        every = s.cfl * K.stable_time_step(s.F, m.node_material, m.material_table,
+                                           m.node_length, s.dim)
+        assert np.isfinite(every) and s.stable_dt() == every

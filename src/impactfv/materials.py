@@ -261,18 +261,23 @@ def pressure_and_von_mises(F, props, sigma):
     return p, math.sqrt(max(1.5 * ss, 0.0))
 
 
-#: the lower bound of min_stretch_bounds, scaled down by this much against the rounding of
-#: both it and min_stretch (which agree to a few ulps where they coincide)
-STRETCH_BOUND_SAFETY = 1.0 - 1e-12
+#: slack of min_stretch_bounds, as a fraction of the mean eigenvalue q of C, on both bounds
+#: of lambda_min^2: more than the rounding of q - 2p and of min_stretch's own trigonometric
+#: solution (whose arccosine near +-1 loses half the digits: up to about 4e-8 q), which for
+#: strongly compressed nodes is far more than a relative margin on lambda_min itself
+STRETCH_BOUND_SLACK = 1e-6
 
 
 def min_stretch_bounds(F):
-    """(lo, hi) with lo <= min_stretch(F) <= hi, in 3D from bounds on the smallest eigenvalue
-    of C (tensors.smallest_stretch_squared_bounds) without its trigonometric solution: what
-    the smallest time step over many nodes needs to skip the nodes that cannot give it."""
-    lo2, hi2 = smallest_stretch_squared_bounds(F)
-    lo = math.sqrt(lo2) * STRETCH_BOUND_SAFETY if lo2 > 0.0 else 0.0
-    return lo, math.sqrt(max(hi2, 0.0))
+    """(lo, hi) with lo <= min_stretch(F) <= hi, as computed, in 3D from bounds on the
+    smallest eigenvalue of C (tensors.smallest_stretch_squared_bounds), each widened by
+    STRETCH_BOUND_SLACK q, without the trigonometric solution: what the smallest time step
+    over many nodes needs to skip the nodes that cannot give it."""
+    lo2, hi2, q = smallest_stretch_squared_bounds(F)
+    slack = STRETCH_BOUND_SLACK * abs(q)
+    lo2 -= slack
+    lo = math.sqrt(lo2) if lo2 > 0.0 else 0.0
+    return lo, math.sqrt(max(hi2 + slack, 0.0))
 
 
 def min_stretch(F):

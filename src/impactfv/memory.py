@@ -152,7 +152,8 @@ def estimate(bodies: list[BodyCounts], order: int = 2, upwind: bool = True,
                    + 8 * ncomp * (d + 1) + 2 * 8 * ncomp           # gradient and limiter
                                                                    # factor, min, max
                    + 8 * d + 8 * d * d                             # force, dF
-                   + 1 + 8 * d) + 8 * h                            # contact state, xdot,
+                   + 1 + 8 * d                                     # contact state, xdot
+                   + (8 if d == 3 else 0)) + 8 * h                 # stretch bounds (3D),
                                                                    # face weights
     contact = 0
     if n_contacts:
@@ -171,7 +172,8 @@ def estimate(bodies: list[BodyCounts], order: int = 2, upwind: bool = True,
     vtu = (3 * 8 * n + t * (cell + 8 + 1)                          # points, cells, offsets,
            + 8 * n * (3 + 3 + 4 + (2 if n_contacts else 0)))       # types, point data
     frame = fields + t * cell + copies + 4 * vtu // 3 + max(t * cell, 3 * 8 * n)
-    checkpoint = 2 * (n * 8 * (d + d * d + d) + history // 3)      # arrays, BytesIO copy
+    checkpoint = 2 * (n * 8 * (d + 2 * d * d + d) + history // 3)  # arrays (with the
+                                                                   # carried stress), copy
     loop = meshes + disc + stepper + contact + history + max(frame, checkpoint)
     # the largest body's dual under construction, after the other bodies' per-body parts
     # (positions, materials, volumes, lengths, velocities; edges and area vectors; faces)

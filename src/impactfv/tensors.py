@@ -92,7 +92,7 @@ def smallest_stretch_squared_bounds(F):
     trigonometric solution (3 x 3): hi the smallest diagonal entry of C (a Rayleigh
     quotient), lo = q - 2 p with q the mean of the eigenvalues and 6 p^2 the sum of their
     squared deviations from it (an eigenvalue is furthest from the mean when the other two
-    are equal, at 2 p). The same q and p as smallest_stretch_squared."""
+    are equal, at 2 p). The same q and p as smallest_stretch_squared; returns (lo, hi, q)."""
     c00 = F[0, 0] ** 2 + F[1, 0] ** 2 + F[2, 0] ** 2
     c11 = F[0, 1] ** 2 + F[1, 1] ** 2 + F[2, 1] ** 2
     c22 = F[0, 2] ** 2 + F[1, 2] ** 2 + F[2, 2] ** 2
@@ -102,7 +102,7 @@ def smallest_stretch_squared_bounds(F):
     q = (c00 + c11 + c22) / 3.0
     off = c01 * c01 + c02 * c02 + c12 * c12
     p2 = (c00 - q) ** 2 + (c11 - q) ** 2 + (c22 - q) ** 2 + 2.0 * off
-    return q - 2.0 * math.sqrt(p2 / 6.0), min(c00, c11, c22)
+    return q - 2.0 * math.sqrt(p2 / 6.0), min(c00, c11, c22), q
 
 
 def smallest_stretch_squared(F):

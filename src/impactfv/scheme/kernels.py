@@ -334,9 +334,11 @@ def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len
     Sa = local_matrix(d)
     Sb = local_matrix(d)
     work = local_rows(11, d)
-    # a group's edges come sorted by their first node (Discretisation.partition_edges), so
-    # each node's own sums stay in registers while its edges are walked: loaded once and
-    # stored once, in the same order of additions as one edge at a time
+    # a group's edges come grouped by their first node (Discretisation.partition_edges;
+    # the local parts of MPI keep the grouping), so each node's own sums stay in registers
+    # while its edges are walked: loaded once and stored once, in the same order of
+    # additions as one edge at a time (and correct for any order: a run of one first node
+    # never writes that node's rows, and each run reloads them)
     force_a = local_vector(d)
     dF_a = local_matrix(d)
     current = -1
