@@ -177,46 +177,11 @@ def strain_energy_density(F, props):
             + 0.5 * props[KAPPA] * (J_ - 1.0) ** 2)
 
 
-def cauchy_stress(F, props, sigma):
-    """Cauchy stress sigma = P F^T / J into sigma (d x d); returns the out-of-plane normal
-    stress sigma_zz of plane strain (0 when d = 3, where sigma holds it)."""
+def _neo_hookean_cauchy_stress(F, props, sigma):
+    """sigma = mu J^(-5/3) dev(b) + kappa (J - 1) I with b = F F^T (b3 = diag(b, 1) in 2D)
+    into sigma; returns (J, J^(-5/3), tr b3, kappa (J - 1)) for the callers' other
+    quantities."""
     d = F.shape[0]
-    mu = props[MU]
-    if int(props[LAW]) == LINEAR_ELASTIC:
-        tr = _linear_stress_tensor(F, props, sigma)
-        return props[LAMBDA] * tr if d == 2 else 0.0
-    # sigma = mu J^(-5/3) dev(b) + kappa (J - 1) I with b = F F^T (b3 = diag(b, 1) in 2D)
-    for i in range(d):
-        for k in range(d):
-            b = 0.0
-            for J in range(d):
-                b += F[i, J] * F[k, J]
-            sigma[i, k] = b
-    trb = 0.0
-    for i in range(d):
-        trb += sigma[i, i]
-    trb += 3.0 - d
-    J_ = determinant(F)
-    c = mu * J_ ** (-5.0 / 3.0)
-    p = props[KAPPA] * (J_ - 1.0)
-    for i in range(d):
-        for k in range(d):
-            if i == k:
-                sigma[i, k] = c * (sigma[i, k] - trb / 3.0) + p
-            else:
-                sigma[i, k] = c * sigma[i, k]
-    return c * (1.0 - trb / 3.0) + p if d == 2 else 0.0
-
-
-def cauchy_stress_and_energy(F, props, sigma):
-    """:func:`cauchy_stress` into sigma, and returns :func:`strain_energy_density` of the same
-    F, with one power of J for both (J^(-2/3) = J J^(-5/3)): the stress exactly as
-    cauchy_stress gives it, the energy equal to strain_energy_density's to round-off."""
-    d = F.shape[0]
-    mu = props[MU]
-    if int(props[LAW]) == LINEAR_ELASTIC:
-        cauchy_stress(F, props, sigma)
-        return strain_energy_density(F, props)
     for i in range(d):
         for k in range(d):
             b = 0.0
@@ -229,7 +194,7 @@ def cauchy_stress_and_energy(F, props, sigma):
     trb += 3.0 - d
     J_ = determinant(F)
     j53 = J_ ** (-5.0 / 3.0)
-    c = mu * j53
+    c = props[MU] * j53
     p = props[KAPPA] * (J_ - 1.0)
     for i in range(d):
         for k in range(d):
@@ -237,6 +202,29 @@ def cauchy_stress_and_energy(F, props, sigma):
                 sigma[i, k] = c * (sigma[i, k] - trb / 3.0) + p
             else:
                 sigma[i, k] = c * sigma[i, k]
+    return J_, j53, trb, p
+
+
+def cauchy_stress(F, props, sigma):
+    """Cauchy stress sigma = P F^T / J into sigma (d x d); returns the out-of-plane normal
+    stress sigma_zz of plane strain (0 when d = 3, where sigma holds it)."""
+    d = F.shape[0]
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        tr = _linear_stress_tensor(F, props, sigma)
+        return props[LAMBDA] * tr if d == 2 else 0.0
+    _, j53, trb, p = _neo_hookean_cauchy_stress(F, props, sigma)
+    return props[MU] * j53 * (1.0 - trb / 3.0) + p if d == 2 else 0.0
+
+
+def cauchy_stress_and_energy(F, props, sigma):
+    """:func:`cauchy_stress` into sigma, and returns :func:`strain_energy_density` of the same
+    F, with one power of J for both (J^(-2/3) = J J^(-5/3)): the stress exactly as
+    cauchy_stress gives it, the energy equal to strain_energy_density's to round-off."""
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        cauchy_stress(F, props, sigma)
+        return strain_energy_density(F, props)
+    J_, j53, trb, _ = _neo_hookean_cauchy_stress(F, props, sigma)
+    mu = props[MU]
     # tr(b3) = F3 : F3 (plane strain adds the out-of-plane 1), as strain_energy_density
     return 0.5 * mu * (j53 * J_) * trb - 1.5 * mu + 0.5 * props[KAPPA] * (J_ - 1.0) ** 2
 

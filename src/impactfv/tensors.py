@@ -87,12 +87,9 @@ def solve(M, rhs, out):
         out[i] = s / det
 
 
-def smallest_stretch_squared_bounds(F):
-    """(lo, hi) with lo <= smallest eigenvalue of C = F^T F <= hi, without the cubic's
-    trigonometric solution (3 x 3): hi the smallest diagonal entry of C (a Rayleigh
-    quotient), lo = q - 2 p with q the mean of the eigenvalues and 6 p^2 the sum of their
-    squared deviations from it (an eigenvalue is furthest from the mean when the other two
-    are equal, at 2 p). The same q and p as smallest_stretch_squared; returns (lo, hi, q)."""
+def _right_cauchy_green_3d(F):
+    """The six entries of C = F^T F (3 x 3), the mean q of its eigenvalues and the sum p2 of
+    their squared deviations from q (|C - q I|^2): (c00, c11, c22, c01, c02, c12, q, p2)."""
     c00 = F[0, 0] ** 2 + F[1, 0] ** 2 + F[2, 0] ** 2
     c11 = F[0, 1] ** 2 + F[1, 1] ** 2 + F[2, 1] ** 2
     c22 = F[0, 2] ** 2 + F[1, 2] ** 2 + F[2, 2] ** 2
@@ -102,6 +99,16 @@ def smallest_stretch_squared_bounds(F):
     q = (c00 + c11 + c22) / 3.0
     off = c01 * c01 + c02 * c02 + c12 * c12
     p2 = (c00 - q) ** 2 + (c11 - q) ** 2 + (c22 - q) ** 2 + 2.0 * off
+    return c00, c11, c22, c01, c02, c12, q, p2
+
+
+def smallest_stretch_squared_bounds(F):
+    """(lo, hi) with lo <= smallest eigenvalue of C = F^T F <= hi, without the cubic's
+    trigonometric solution (3 x 3): hi the smallest diagonal entry of C (a Rayleigh
+    quotient), lo = q - 2 p with q the mean of the eigenvalues and 6 p^2 the sum of their
+    squared deviations from it (an eigenvalue is furthest from the mean when the other two
+    are equal, at 2 p). The same q and p as smallest_stretch_squared; returns (lo, hi, q)."""
+    c00, c11, c22, _, _, _, q, p2 = _right_cauchy_green_3d(F)
     return q - 2.0 * math.sqrt(p2 / 6.0), min(c00, c11, c22), q
 
 
@@ -116,15 +123,7 @@ def smallest_stretch_squared(F):
         disc = math.sqrt(max(0.25 * (c11 - c22) ** 2 + c12 * c12, 0.0))
         return half_tr - disc
     # symmetric 3x3: trigonometric solution of the characteristic cubic
-    c00 = F[0, 0] ** 2 + F[1, 0] ** 2 + F[2, 0] ** 2
-    c11 = F[0, 1] ** 2 + F[1, 1] ** 2 + F[2, 1] ** 2
-    c22 = F[0, 2] ** 2 + F[1, 2] ** 2 + F[2, 2] ** 2
-    c01 = F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1] + F[2, 0] * F[2, 1]
-    c02 = F[0, 0] * F[0, 2] + F[1, 0] * F[1, 2] + F[2, 0] * F[2, 2]
-    c12 = F[0, 1] * F[0, 2] + F[1, 1] * F[1, 2] + F[2, 1] * F[2, 2]
-    q = (c00 + c11 + c22) / 3.0
-    off = c01 * c01 + c02 * c02 + c12 * c12
-    p2 = (c00 - q) ** 2 + (c11 - q) ** 2 + (c22 - q) ** 2 + 2.0 * off
+    c00, c11, c22, c01, c02, c12, q, p2 = _right_cauchy_green_3d(F)
     if p2 <= 1e-30 * q * q:
         return q
     p = math.sqrt(p2 / 6.0)
