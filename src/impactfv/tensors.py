@@ -71,8 +71,9 @@ def dot(u, w):
 def normalise(u):
     """Scale u to unit length in place; returns its former length."""
     s = math.sqrt(dot(u, u))
+    inverse = 1.0 / s       # one division instead of d (a quotient costs several products)
     for i in range(u.shape[0]):
-        u[i] /= s
+        u[i] *= inverse
     return s
 
 

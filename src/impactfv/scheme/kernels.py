@@ -153,7 +153,8 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                 face = local_components(m)
                 for i in range(m):
                     face[i] = own * ua[i]
-                for o in bface_others[h]:
+                for q in range(d - 1):
+                    o = bface_others[h, q]
                     for i in range(m):
                         face[i] += v[o, i]
                 for i in range(m):
@@ -165,8 +166,8 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
             else:
                 for i in range(m):
                     mean = own * ua[i]
-                    for o in bface_others[h]:
-                        mean += v[o, i]
+                    for q in range(d - 1):
+                        mean += v[bface_others[h, q], i]
                     mean /= denominator
                     for J in range(d):
                         g[slot(i, J, d, m)] += mean * bface_C[h, J]
@@ -282,8 +283,9 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
     zp = props[RHO] * props[CP]
     zs = props[RHO] * props[CS]
     ln = C_len[e]
+    inverse_ln = 1.0 / ln
     for i in range(d):
-        N[i] = C[e, i] / ln
+        N[i] = C[e, i] * inverse_ln
         for J in range(d):
             Fe[i, J] = 0.5 * (F[a, i, J] + F[b, i, J])
     area = face_geometry(Fe, N, props, n)

@@ -79,8 +79,9 @@ def upwind_velocity(va, vb, dt, zp, v):
     in every direction the flux stays consistent and dissipative, and shear waves are still
     captured by the momentum flux (docs/validation.md).
     """
+    scale = 0.5 / zp
     for i in range(va.shape[0]):
-        v[i] = 0.5 * (va[i] + vb[i]) + 0.5 * dt[i] / zp
+        v[i] = 0.5 * (va[i] + vb[i]) + scale * dt[i]
 
 
 def boundary_state(v, t, zp, zs, n, fixed, v_given, t_given, Z, rhs, vC, tC):
@@ -92,6 +93,20 @@ def boundary_state(v, t, zp, zs, n, fixed, v_given, t_given, Z, rhs, vC, tC):
     on a free surface). Writes v^C into vC and t^C into tC; Z and rhs are d x d and d scratch.
     """
     d = n.shape[0]
+    held = False
+    for i in range(d):
+        held = held or fixed[i]
+    if not held:
+        # every component a prescribed traction (a free or loaded face): t^C = t_given and
+        # v^C = v + Z^-1 (t_given - t), Z^-1 = n (x) n / zp + (I - n (x) n) / zs
+        jn = 0.0
+        for i in range(d):
+            jn += (t_given[i] - t[i]) * n[i]
+        for i in range(d):
+            jump = t_given[i] - t[i]
+            vC[i] = v[i] + jump / zs + (1.0 / zp - 1.0 / zs) * jn * n[i]
+            tC[i] = t_given[i]
+        return
     # unknown dv = v^C - v with dt = Z dv; per component one of (dv_i, dt_i) is known
     for i in range(d):
         if fixed[i]:
