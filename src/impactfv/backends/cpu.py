@@ -68,20 +68,29 @@ def dim_tag(dim: int) -> tuple:
 _compiled = {}
 
 
-def point(f):
+def point(f, inline: bool = True):
     """The numba-compiled copy of point function ``f`` (compiled once, cached on disk).
 
     A point function may call other point functions (of its own module or another impactfv
     module); its copy gets a globals table in which those names refer to their compiled
     copies, so the pure modules themselves are never touched.
+
+    ``inline``: numba inlines the copy into its callers (the default), where the loops
+    over components unroll and the local arrays stay in registers; numba then types and
+    lowers its body again at every call site. With False it is a function of its own,
+    compiled once and called: for kernels' cold paths (output fields, on-demand monitors),
+    where an inlined material law costs seconds of compilation and a call costs nothing
+    that matters. On a hot path a call costs about 50 ns (the arrays are passed field by
+    field): the node loops ran twice as slow (docs/performance.md, "Compilation").
     """
-    if f in _compiled:
-        return _compiled[f]
+    key = (f, inline)
+    if key in _compiled:
+        return _compiled[key]
     table = dict(f.__globals__)
     clone = types.FunctionType(f.__code__, table, f.__name__, f.__defaults__, f.__closure__)
     clone.__module__ = f.__module__
     clone.__qualname__ = f.__qualname__
-    compiled = _compiled[f] = njit(cache=True, inline="always")(clone)
+    compiled = _compiled[key] = njit(cache=True, inline="always" if inline else "never")(clone)
     for name in f.__code__.co_names:
         g = table.get(name)
         if isinstance(g, types.FunctionType) and g.__module__.startswith("impactfv."):

@@ -27,9 +27,10 @@ from . import riemann as R
 from . import time as T
 
 cauchy_stress = point(M.cauchy_stress)
-strain_energy_density = point(M.strain_energy_density)
+# cold paths (on-demand monitors, output fields): called, not inlined (backends.cpu.point)
+strain_energy_density = point(M.strain_energy_density, inline=False)
 cauchy_stress_and_energy = point(M.cauchy_stress_and_energy)
-pressure_and_von_mises = point(M.pressure_and_von_mises)
+pressure_and_von_mises = point(M.pressure_and_von_mises, inline=False)
 min_stretch = point(M.min_stretch)
 min_stretch_bounds = point(M.min_stretch_bounds)
 determinant = point(_determinant)
@@ -558,17 +559,17 @@ def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_state,
                    contact_xdot, node_material, table, volume, fixed_mask, fixed_value,
-                   node_length, body_start, with_monitors, out, carry, U, bound, dim):
+                   node_length, body_start, with_monitors, out, pack, U, bound, dim):
     """The last Runge-Kutta stage (as :func:`rk_update`) fused with what the time loop needs
     of the new state, computed while it is still in registers: the stable time step of the
     next step (as :func:`stable_time_step`), the first node with a non-finite state or
     J <= 0 (as :func:`state_is_bad`), with ``with_monitors`` the energies and momentum
-    of each body into ``out`` (as :func:`monitors`, summed in the same order) and, with
-    ``carry`` 1, the Cauchy stress of the new state into sigma (as :func:`compute_stress`,
-    for the next step's first stage), with ``carry`` 2 the stress and the packed fields U as
-    :func:`stress_and_fields` writes them. The stress and the strain energy share one power
-    of J (materials.cauchy_stress_and_energy). sigma is read (the stage's stress, for the
-    energy rate) before the node's new stress is written.
+    of each body into ``out`` (as :func:`monitors`, summed in the same order), and the
+    Cauchy stress of the new state into sigma (as :func:`compute_stress`, for the next
+    step's first stage), with ``pack`` also the packed fields U as :func:`stress_and_fields`
+    writes them. The stress and the strain energy share one power of J
+    (materials.cauchy_stress_and_energy). sigma is read (the stage's stress, for the energy
+    rate) before the node's new stress is written.
 
     In 3D the smallest principal stretch (the trigonometric solution of a cubic) is not
     evaluated here: the first value returned is then the smallest of upper bounds of
@@ -636,18 +637,14 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
                 smallest = min(smallest, node_length[a] * upper / props[CP])
             else:
                 smallest = min(smallest, node_length[a] * min_stretch(Fa) / props[CP])
-            energy = 0.0
-            if carry > 0:
-                sa = local_matrix(d)
-                energy = cauchy_stress_and_energy(Fa, props, sa)
-                store_matrix(sa, sigma, a)
-                if carry == 2:
-                    for i in range(d):
-                        U[a, i] = va[i]
-                        for j in range(i, d):
-                            U[a, d + symmetric_index(i, j, d)] = sa[i, j]
-            elif with_monitors:
-                energy = strain_energy_density(Fa, props)
+            sa = local_matrix(d)
+            energy = cauchy_stress_and_energy(Fa, props, sa)
+            store_matrix(sa, sigma, a)
+            if pack:
+                for i in range(d):
+                    U[a, i] = va[i]
+                    for j in range(i, d):
+                        U[a, d + symmetric_index(i, j, d)] = sa[i, j]
             if with_monitors:
                 mass = props[RHO] * volume[a]
                 v2 = 0.0

@@ -433,7 +433,7 @@ class FVStepper:
             smallest, bad, rate, integration = K.rk_update_last(
                 alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
                 m.body_start, bool(self.history_due), self.monitor_buf,
-                2 if self.stress_reconstructed else 1, self.U[:o], self.stretch_bound[:o],
+                bool(self.stress_reconstructed), self.U[:o], self.stretch_bound[:o],
                 self.dim)
             if self.disc.dim == 3:
                 # the last stage gave an upper bound of the minimum and each node's lower bound
