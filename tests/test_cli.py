@@ -240,3 +240,27 @@ def test_progress_bar_draws_on_one_line():
     assert text.endswith("100%|" + "#" * 30 + "| 2.000e-05/2.000e-05 s [00:00<00:00]\n")
     assert text.count("\n") == 1 and text.startswith("\rsimulated time")
     assert progress_bar(False, 1.0) is None
+
+
+def test_progress_bar_notes_the_first_step_and_then_blanks_the_note_out():
+    """The note shown until the first update is overwritten by blanks, so no tail of it
+    stays on the line; the time left comes from the updates after the first one, not from
+    the wait before it."""
+    import io
+    import time
+
+    from impactfv.pipeline.progress import ProgressBar
+
+    stream = io.StringIO()
+    bar = ProgressBar(1.0, stream, interval=0.0, note="first step (compiling)")
+    first = stream.getvalue()
+    assert first.startswith("\rsimulated time   0%|") and first.endswith(" first step (compiling)")
+    time.sleep(0.3)                       # a slow first step
+    bar.update(0.25)
+    second = stream.getvalue()[len(first):]
+    assert "compiling" not in second
+    assert len(second) == len(first)      # the longer line blanked out to its end
+    assert second.rstrip().endswith("<?]")  # one update: no rate yet
+    bar.update(0.25)                      # at once: half done, the rest as fast
+    third = stream.getvalue()[len(first) + len(second):]
+    assert third.rstrip().endswith("<00:00]"), third

@@ -16,9 +16,15 @@ def _clock(seconds: float) -> str:
 
 class ProgressBar:
     """``simulated time  43%|#####      | 4.300e-05/1.000e-04 s [00:06<00:08]`` on one line,
-    redrawn at most ten times a second. ``n`` is the simulated time shown."""
+    redrawn at most ten times a second. ``n`` is the simulated time shown.
 
-    def __init__(self, total: float, stream=None, width: int = 30, interval: float = 0.1):
+    ``note``: shown after the bar until the first update (what the run is waiting for
+    before its first step). The time left is extrapolated from the steps after the first
+    one, so the first step's one-off costs (numba's compilation on a fresh install) do not
+    inflate it."""
+
+    def __init__(self, total: float, stream=None, width: int = 30, interval: float = 0.1,
+                 note: str = ""):
         self.total = float(total)
         self.n = 0.0
         self.stream = stream if stream is not None else sys.stderr
@@ -26,22 +32,40 @@ class ProgressBar:
         self.interval = interval
         self.start = time.monotonic()
         self.drawn = -1.0
+        self.first = None          # (time, n) at the first update
+        self.longest = 0           # longest line drawn, overwritten with blanks
+        if note:
+            self.drawn = self.start
+            self._draw(self.start, note)
 
     def update(self, dt: float):
         self.n += dt
         now = time.monotonic()
+        if self.first is None:
+            self.first = (now, self.n)
         if now - self.drawn >= self.interval:
             self.drawn = now
             self._draw(now)
 
-    def _draw(self, now):
+    def _remaining(self, now, frac):
+        if frac >= 1.0:
+            return 0.0
+        if self.first is None or self.n <= self.first[1]:
+            return float("inf")
+        rate = (self.n - self.first[1]) / max(now - self.first[0], 1e-9)
+        return (self.total - self.n) / rate
+
+    def _draw(self, now, note=""):
         frac = min(max(self.n / self.total, 0.0), 1.0) if self.total > 0 else 1.0
         elapsed = now - self.start
-        remaining = elapsed * (1 - frac) / frac if frac > 0 else float("inf")
         bar = "#" * int(round(frac * self.width))
-        self.stream.write(f"\rsimulated time {100 * frac:3.0f}%|{bar:<{self.width}}| "
-                          f"{self.n:.3e}/{self.total:.3e} s "
-                          f"[{_clock(elapsed)}<{_clock(remaining)}]")
+        line = (f"simulated time {100 * frac:3.0f}%|{bar:<{self.width}}| "
+                f"{self.n:.3e}/{self.total:.3e} s "
+                f"[{_clock(elapsed)}<{_clock(self._remaining(now, frac))}]")
+        if note:
+            line += " " + note
+        self.stream.write("\r" + line + " " * max(self.longest - len(line), 0))
+        self.longest = max(self.longest, len(line))
         self.stream.flush()
 
     def close(self):
@@ -50,10 +74,14 @@ class ProgressBar:
         self.stream.flush()
 
 
-def progress_bar(progress: bool | None, end: float, stream=None):
+#: the progress bar's note until the first step is done
+FIRST_STEP_NOTE = "first step (compiles the kernels after a fresh install; cached afterwards)"
+
+
+def progress_bar(progress: bool | None, end: float, stream=None, note: str = ""):
     """A bar over simulated time, or None. ``progress=None``: only on a terminal."""
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
         return None
-    return ProgressBar(end, stream)
+    return ProgressBar(end, stream, note=note)

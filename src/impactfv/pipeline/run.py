@@ -34,7 +34,7 @@ from ..io.folder import OutputFolder
 from ..memory import estimate_case, memory_problem, resident_bytes
 from ..io.writers import SnapshotWriter, write_history_csv, write_summary
 from .history import History
-from .progress import progress_bar
+from .progress import FIRST_STEP_NOTE, progress_bar
 from .result import Interrupted, RunResult
 from .signals import SignalFlag
 from ..parallel.comm import world
@@ -271,7 +271,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         next_output = interval
     next_checkpoint = _next_multiple(t, checkpoint_every) if checkpoint_every else math.inf
     checkpointed = steps if restart else -1
-    bar = progress_bar(progress, end)
+    bar = progress_bar(progress, end, note=FIRST_STEP_NOTE)
     if bar is not None and t > 0:
         bar.update(t)
     status = "completed"
