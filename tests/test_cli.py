@@ -232,7 +232,7 @@ def test_progress_bar_draws_on_one_line():
     from impactfv.pipeline.progress import progress_bar
 
     stream = io.StringIO()
-    bar = progress_bar(True, 2e-5, stream)
+    bar = progress_bar(True, 2e-5, stream, columns=120)
     for _ in range(4):
         bar.update(5e-6)
     bar.close()
@@ -252,9 +252,19 @@ def test_progress_bar_notes_the_first_step_and_then_blanks_the_note_out():
     from impactfv.pipeline.progress import ProgressBar
 
     stream = io.StringIO()
-    bar = ProgressBar(1.0, stream, interval=0.0, note="first step (compiling)")
+    bar = ProgressBar(1.0, stream, interval=0.0, note="first step (compiling)", columns=200)
     first = stream.getvalue()
     assert first.startswith("\rsimulated time   0%|") and first.endswith(" first step (compiling)")
+    # an 80-column terminal: the bar narrows and the note is cut short, so the line fits
+    narrow = io.StringIO()
+    ProgressBar(1.0, narrow, note="first step (compiling)", columns=80)
+    assert len(narrow.getvalue()) <= 80                  # \r and the line: it never wraps
+    assert narrow.getvalue().endswith("|" + " " * 10 + "| 0.000e+00/1.000e+00 s [00:00<?]"
+                                      + " first step...")
+    # no room for it: no note rather than a wrapped line
+    narrow = io.StringIO()
+    ProgressBar(1.0, narrow, note="first step (compiling)", columns=60)
+    assert narrow.getvalue().endswith("[00:00<?]")
     time.sleep(0.3)                       # a slow first step
     bar.update(0.25)
     second = stream.getvalue()[len(first):]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import sys
 import time
 
@@ -19,21 +20,27 @@ class ProgressBar:
     redrawn at most ten times a second. ``n`` is the simulated time shown.
 
     ``note``: shown after the bar until the first update (what the run is waiting for
-    before its first step). The time left is extrapolated from the steps after the first
-    one, so the first step's one-off costs (numba's compilation on a fresh install) do not
-    inflate it."""
+    before its first step). Bar and note fit in ``columns`` (default: the terminal's width),
+    so that the line does not wrap and each redraw overwrites it. The time left is
+    extrapolated from the steps after the first one, so the first step's one-off costs
+    (numba's compilation on a fresh install) do not inflate it."""
 
     def __init__(self, total: float, stream=None, width: int = 30, interval: float = 0.1,
-                 note: str = ""):
+                 note: str = "", columns: int | None = None):
         self.total = float(total)
         self.n = 0.0
         self.stream = stream if stream is not None else sys.stderr
-        self.width = width
         self.interval = interval
         self.start = time.monotonic()
         self.drawn = -1.0
         self.first = None          # (time, n) at the first update
         self.longest = 0           # longest line drawn, overwritten with blanks
+        self.columns = columns if columns else shutil.get_terminal_size().columns
+        # the text around the bar takes 57 characters ("simulated time 100%|", "| 1.000e-04/
+        # 1.000e-04 s [00:21<00:00]"): the bar gives way (down to 10) to fit the line and
+        # the note in the terminal
+        room = self.columns - 1 - 57 - (len(note) + 1 if note else 0)
+        self.width = max(10, min(width, room))
         if note:
             self.drawn = self.start
             self._draw(self.start, note)
@@ -62,7 +69,10 @@ class ProgressBar:
         line = (f"simulated time {100 * frac:3.0f}%|{bar:<{self.width}}| "
                 f"{self.n:.3e}/{self.total:.3e} s "
                 f"[{_clock(elapsed)}<{_clock(self._remaining(now, frac))}]")
-        if note:
+        room = self.columns - 1 - len(line) - 1
+        if note and len(note) > room:
+            note = note.split(" (")[0] + "..."       # "compiling (first run only)"
+        if note and len(note) <= room:
             line += " " + note
         self.stream.write("\r" + line + " " * max(self.longest - len(line), 0))
         self.longest = max(self.longest, len(line))
@@ -75,13 +85,14 @@ class ProgressBar:
 
 
 #: the progress bar's note until the first step is done
-FIRST_STEP_NOTE = "first step (compiles the kernels after a fresh install; cached afterwards)"
+FIRST_STEP_NOTE = "compiling (first run only)"
 
 
-def progress_bar(progress: bool | None, end: float, stream=None, note: str = ""):
+def progress_bar(progress: bool | None, end: float, stream=None, note: str = "",
+                 columns: int | None = None):
     """A bar over simulated time, or None. ``progress=None``: only on a terminal."""
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
         return None
-    return ProgressBar(end, stream, note=note)
+    return ProgressBar(end, stream, note=note, columns=columns)
