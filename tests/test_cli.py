@@ -242,35 +242,49 @@ def test_progress_bar_draws_on_one_line():
     assert progress_bar(False, 1.0) is None
 
 
-def test_progress_bar_notes_the_first_step_and_then_blanks_the_note_out():
+def test_progress_bar_notes_the_first_step_and_then_blanks_the_note_out(monkeypatch):
     """The note shown until the first update is overwritten by blanks, so no tail of it
     stays on the line; the time left comes from the updates after the first one, not from
-    the wait before it."""
+    the wait before it; on any terminal width the line fits (it never wraps)."""
     import io
-    import time
 
-    from impactfv.pipeline.progress import ProgressBar
+    from impactfv.pipeline import progress
 
+    clock = [1000.0]
+    monkeypatch.setattr(progress.time, "monotonic", lambda: clock[0])
     stream = io.StringIO()
-    bar = ProgressBar(1.0, stream, interval=0.0, note="first step (compiling)", columns=200)
+    bar = progress.ProgressBar(1.0, stream, interval=0.0, note="first step (compiling)",
+                               columns=200)
     first = stream.getvalue()
     assert first.startswith("\rsimulated time   0%|") and first.endswith(" first step (compiling)")
-    # an 80-column terminal: the bar narrows and the note is cut short, so the line fits
-    narrow = io.StringIO()
-    ProgressBar(1.0, narrow, note="first step (compiling)", columns=80)
-    assert len(narrow.getvalue()) <= 80                  # \r and the line: it never wraps
-    assert narrow.getvalue().endswith("|" + " " * 10 + "| 0.000e+00/1.000e+00 s [00:00<?]"
-                                      + " first step...")
-    # no room for it: no note rather than a wrapped line
-    narrow = io.StringIO()
-    ProgressBar(1.0, narrow, note="first step (compiling)", columns=60)
-    assert narrow.getvalue().endswith("[00:00<?]")
-    time.sleep(0.3)                       # a slow first step
+    clock[0] += 100.0                      # a first step of 100 s (compilation)
     bar.update(0.25)
     second = stream.getvalue()[len(first):]
     assert "compiling" not in second
-    assert len(second) == len(first)      # the longer line blanked out to its end
-    assert second.rstrip().endswith("<?]")  # one update: no rate yet
-    bar.update(0.25)                      # at once: half done, the rest as fast
+    assert len(second) == len(first)       # the longer line blanked out to its end
+    assert second.rstrip().endswith("[01:40<?]")    # one update: no rate yet
+    clock[0] += 10.0                       # then 0.25 s of simulated time per 10 s
+    bar.update(0.25)
     third = stream.getvalue()[len(first) + len(second):]
-    assert third.rstrip().endswith("<00:00]"), third
+    # 0.5 left at 0.025 per s: 20 s (from the whole 110 s it would be 110 s)
+    assert third.rstrip().endswith("[01:50<00:20]"), third
+    # a continued run starts at its time, and its first step is still the first update
+    stream = io.StringIO()
+    bar = progress.ProgressBar(1.0, stream, interval=0.0, columns=200, start_at=0.5)
+    clock[0] += 100.0
+    bar.update(0.1)
+    clock[0] += 10.0
+    bar.update(0.1)
+    assert stream.getvalue().rstrip().endswith("[01:50<00:30]")
+    for columns in (20, 40, 60, 64, 72, 80, 100, 140):
+        stream = io.StringIO()
+        bar = progress.ProgressBar(1.0, stream, interval=0.0, columns=columns,
+                                   note="loading the kernels (compiled on the first run)")
+        clock[0] += 7300.0                 # clocks with hours are longer
+        bar.update(0.5)
+        bar.close()
+        lines = stream.getvalue().rstrip("\n").split("\r")[1:]
+        assert all(len(line) <= columns - 1 for line in lines), (columns, lines)
+        # the note, at least shortened, shown from 80 columns
+        assert ("loading the kernels" in lines[0]) == (columns >= 80), (columns, lines[0])
+    assert "|" + "#" * 15 + " " * 15 + "|" in lines[-1]    # 140 columns: the whole bar

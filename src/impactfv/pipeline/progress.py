@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import io
+import os
 import shutil
 import sys
 import time
@@ -17,30 +19,28 @@ def _clock(seconds: float) -> str:
 
 class ProgressBar:
     """``simulated time  43%|#####      | 4.300e-05/1.000e-04 s [00:06<00:08]`` on one line,
-    redrawn at most ten times a second. ``n`` is the simulated time shown.
+    redrawn at most ten times a second. ``n`` is the simulated time shown; ``start_at`` the
+    simulated time a continued run starts from.
 
     ``note``: shown after the bar until the first update (what the run is waiting for
-    before its first step). Bar and note fit in ``columns`` (default: the terminal's width),
-    so that the line does not wrap and each redraw overwrites it. The time left is
-    extrapolated from the steps after the first one, so the first step's one-off costs
-    (numba's compilation on a fresh install) do not inflate it."""
+    before its first step). The line fits in ``columns`` (default: the width of the
+    terminal the bar is drawn on): the bar narrows (to nothing on a very narrow terminal),
+    the note shortens or goes, so that the line does not wrap and each redraw overwrites
+    it. The time left is extrapolated from the steps after the first one, so the first
+    step's one-off costs (numba's compilation on a fresh install) do not inflate it."""
 
     def __init__(self, total: float, stream=None, width: int = 30, interval: float = 0.1,
-                 note: str = "", columns: int | None = None):
+                 note: str = "", columns: int | None = None, start_at: float = 0.0):
         self.total = float(total)
-        self.n = 0.0
+        self.n = float(start_at)
         self.stream = stream if stream is not None else sys.stderr
+        self.width = width
         self.interval = interval
         self.start = time.monotonic()
         self.drawn = -1.0
         self.first = None          # (time, n) at the first update
         self.longest = 0           # longest line drawn, overwritten with blanks
-        self.columns = columns if columns else shutil.get_terminal_size().columns
-        # the text around the bar takes 57 characters ("simulated time 100%|", "| 1.000e-04/
-        # 1.000e-04 s [00:21<00:00]"): the bar gives way (down to 10) to fit the line and
-        # the note in the terminal
-        room = self.columns - 1 - 57 - (len(note) + 1 if note else 0)
-        self.width = max(10, min(width, room))
+        self.columns = columns if columns else _terminal_columns(self.stream)
         if note:
             self.drawn = self.start
             self._draw(self.start, note)
@@ -65,16 +65,26 @@ class ProgressBar:
     def _draw(self, now, note=""):
         frac = min(max(self.n / self.total, 0.0), 1.0) if self.total > 0 else 1.0
         elapsed = now - self.start
-        bar = "#" * int(round(frac * self.width))
-        line = (f"simulated time {100 * frac:3.0f}%|{bar:<{self.width}}| "
-                f"{self.n:.3e}/{self.total:.3e} s "
+        head = f"simulated time {100 * frac:3.0f}%"
+        tail = (f" {self.n:.3e}/{self.total:.3e} s "
                 f"[{_clock(elapsed)}<{_clock(self._remaining(now, frac))}]")
-        room = self.columns - 1 - len(line) - 1
-        if note and len(note) > room:
-            note = note.split(" (")[0] + "..."       # "compiling (first run only)"
-        if note and len(note) <= room:
-            line += " " + note
-        self.stream.write("\r" + line + " " * max(self.longest - len(line), 0))
+        limit = self.columns - 1
+        # the first of: the note in full beside a bar of 10 or more, shortened ("loading
+        # the kernels...") beside such a bar, shortened in place of the bar, no note; the bar
+        # takes what the text leaves of the line, up to its width, and goes below 5
+        short = note.split(" (")[0] + "..."
+        options = [(note, 10), (short, 10), (short, -2)] if note else []
+        shown, width = "", limit - len(head) - len(tail) - 2
+        for text, least in options:
+            room = limit - len(head) - len(tail) - 2 - len(text) - 1
+            if room >= least:
+                shown, width = text, room
+                break
+        width = min(self.width, width)
+        if width >= 5:
+            head += "|" + f"{'#' * int(round(frac * width)):<{width}}" + "|"
+        line = (head + tail + (" " + shown if shown else ""))[:limit]
+        self.stream.write("\r" + line + " " * max(min(self.longest, limit) - len(line), 0))
         self.longest = max(self.longest, len(line))
         self.stream.flush()
 
@@ -84,15 +94,25 @@ class ProgressBar:
         self.stream.flush()
 
 
-#: the progress bar's note until the first step is done
-FIRST_STEP_NOTE = "compiling (first run only)"
+def _terminal_columns(stream) -> int:
+    """The width of the terminal ``stream`` writes to (the bar goes to standard error, whose
+    terminal may differ from standard output's), else shutil's guess."""
+    try:
+        return os.get_terminal_size(stream.fileno()).columns
+    except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
+        return shutil.get_terminal_size().columns
+
+
+#: the progress bar's note until the first step is done: numba compiles the kernels on the
+#: first run after an install and loads them from its cache afterwards (a few seconds)
+FIRST_STEP_NOTE = "loading the kernels (compiled on the first run)"
 
 
 def progress_bar(progress: bool | None, end: float, stream=None, note: str = "",
-                 columns: int | None = None):
+                 columns: int | None = None, start_at: float = 0.0):
     """A bar over simulated time, or None. ``progress=None``: only on a terminal."""
     if progress is None:
         progress = sys.stderr.isatty()
     if not progress:
         return None
-    return ProgressBar(end, stream, note=note, columns=columns)
+    return ProgressBar(end, stream, note=note, columns=columns, start_at=start_at)

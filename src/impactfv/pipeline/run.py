@@ -271,9 +271,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         next_output = interval
     next_checkpoint = _next_multiple(t, checkpoint_every) if checkpoint_every else math.inf
     checkpointed = steps if restart else -1
-    bar = progress_bar(progress, end, note=FIRST_STEP_NOTE)
-    if bar is not None and t > 0:
-        bar.update(t)
+    # a continued run's bar starts at its time: its first step is still the first update
+    bar = progress_bar(progress, end, note=FIRST_STEP_NOTE, start_at=t)
     status = "completed"
     stop = SignalFlag(handle_signals)
     loop_start = _time.perf_counter()
