@@ -288,3 +288,22 @@ def test_progress_bar_notes_the_first_step_and_then_blanks_the_note_out(monkeypa
         # the note, at least shortened, shown from 80 columns
         assert ("loading the kernels" in lines[0]) == (columns >= 80), (columns, lines[0])
     assert "|" + "#" * 15 + " " * 15 + "|" in lines[-1]    # 140 columns: the whole bar
+
+
+def test_progress_bar_width_falls_back_when_the_terminal_reports_none(monkeypatch):
+    """A pseudo-terminal may report 0 columns; a stream without a terminal has no size: the
+    bar then takes COLUMNS (or 80), never a width that would cut its line to nothing."""
+    import io
+    import os
+
+    from impactfv.pipeline import progress
+
+    class Tty(io.StringIO):
+        def fileno(self):
+            return 2
+
+    monkeypatch.setenv("COLUMNS", "97")
+    monkeypatch.setattr(progress.os, "get_terminal_size",
+                        lambda fd=None: os.terminal_size((0, 0)))
+    assert progress._terminal_columns(Tty()) == 97
+    assert progress._terminal_columns(io.StringIO()) == 97     # no fileno: no terminal

@@ -98,9 +98,11 @@ def _terminal_columns(stream) -> int:
     """The width of the terminal ``stream`` writes to (the bar goes to standard error, whose
     terminal may differ from standard output's), else shutil's guess."""
     try:
-        return os.get_terminal_size(stream.fileno()).columns
+        columns = os.get_terminal_size(stream.fileno()).columns
     except (AttributeError, OSError, ValueError, io.UnsupportedOperation):
-        return shutil.get_terminal_size().columns
+        columns = 0
+    # a pseudo-terminal may report 0 columns: shutil then reads COLUMNS or assumes 80
+    return columns if columns > 0 else shutil.get_terminal_size().columns
 
 
 #: the progress bar's note until the first step is done: numba compiles the kernels on the
