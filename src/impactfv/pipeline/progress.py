@@ -72,15 +72,16 @@ class ProgressBar:
         # the first of: the note in full beside a bar of 10 or more, shortened ("loading
         # the kernels...") beside such a bar, shortened in place of the bar, no note; the bar
         # takes what the text leaves of the line, up to its width, and goes below 5
-        short = note.split(" (")[0] + "..."
-        options = [(note, 10), (short, 10), (short, -2)] if note else []
-        shown, width = "", limit - len(head) - len(tail) - 2
-        for text, least in options:
-            room = limit - len(head) - len(tail) - 2 - len(text) - 1
-            if room >= least:
-                shown, width = text, room
-                break
-        width = min(self.width, width)
+        free = limit - len(head) - len(tail) - 2         # for the bar between its "|"s
+        shown = ""
+        if note:
+            short = note.split(" (")[0] + "..."
+            for text, least in ((note, 10), (short, 10), (short, -2)):
+                if free - len(text) - 1 >= least:
+                    shown = text
+                    free -= len(text) + 1
+                    break
+        width = min(self.width, free)
         if width >= 5:
             head += "|" + f"{'#' * int(round(frac * width)):<{width}}" + "|"
         line = (head + tail + (" " + shown if shown else ""))[:limit]
