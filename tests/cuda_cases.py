@@ -58,13 +58,13 @@ def cube(name, origin, velocity, divisions=(2, 2, 2)):
 CASES = {
     # two bars meeting off-centre with non-matching meshes and sliding (Coulomb friction)
     "2d_two_bars_coulomb": {
-        "run": {"end_time": 6e-5, "output_interval": 6e-5}, "material": SOFT,
+        "run": {"end_time": 3.5e-5, "output_interval": 3.5e-5}, "material": SOFT,
         "body": [bar("left", [-0.0041, 0.0], [10.0, 2.0]),
                  bar("right", [0.0001, 0.0005], [-8.0, -1.0], (3, 2))],
         "contact": [{"bodies": ["left", "right"], "model": "coulomb", "friction": 0.2}]},
     # a block sticking to a moving wall under gravity (the body force on the device too)
     "2d_wall_stick_gravity": {
-        "run": {"end_time": 6e-5, "output_interval": 6e-5}, "material": SOFT,
+        "run": {"end_time": 3e-5, "output_interval": 3e-5}, "material": SOFT,
         "body": [dict(bar("block", [0.00005, 0.0], [-10.0, "3*y"]),
                       body_force=[0.0, -9.81e4])],
         "contact": [{"bodies": ["block"], "model": "stick",
@@ -76,19 +76,23 @@ CASES = {
         "body": [cube("block", [0.00005, 0.0, 0.0], [-10.0, 4.0, "100*x"])],
         "contact": [{"bodies": ["block"], "model": "slip",
                      "wall": {"point": [0.0, 0.0, 0.0], "normal": [1.0, 0.0, 0.0]}}]},
+    # free bodies: five steps each (a run steps to every output time)
     "2d_order2_bj_clamp_traction": block_case(
-        divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=2e-7,
+        divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=1e-7,
+        output_interval=2e-8,
         boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": "2e6*t"}},
                   {"region": "ymax", "traction": ["1e6*t/1e-7", -2e6]}]),
     "2d_order2_bj_umuscl": block_case(
-        divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=2e-7,
+        divisions=(5, 3), velocity=("10*sin(300*x)", "5*cos(300*y)"), end_time=1e-7,
+        output_interval=2e-8,
         boundary=[{"region": "xmin", "velocity": {"x": 0.0, "y": "2e6*t"}}]),
     "2d_order1_central": block_case(divisions=(5, 3), velocity=("5e4*y", "-2e4*x"),
-                                    end_time=2e-7, order=1, limiter="none",
-                                    geometric_flux="central"),
-    "3d_order2_venkatakrishnan": box(2, "venkatakrishnan", "upwind"),
+                                    end_time=1e-7, output_interval=2e-8, order=1,
+                                    limiter="none", geometric_flux="central"),
+    "3d_order2_venkatakrishnan": box(2, "venkatakrishnan", "upwind", end_time=1.25e-7),
 }
 CASES["2d_order2_bj_umuscl"]["run"]["muscl_chi"] = 0.6
+CASES["3d_order2_venkatakrishnan"]["run"]["output_interval"] = 2.5e-8
 for name in ("2d_order2_bj_umuscl", "3d_order2_venkatakrishnan"):
     CASES[name]["run"]["compatibility_time"] = 30.0
 
