@@ -150,3 +150,26 @@ def test_last_stage_leaves_the_stress_of_the_new_state(block, order, geometric_f
     for name in ("v", "F", "x"):
         a, b = getattr(carried, name), getattr(fresh, name)
         assert np.abs(a - b).max() <= 1e-12 * np.abs(b).max()
+
+
+def test_umuscl_weight_is_chi_on_smooth_fields_and_zero_across_a_sawtooth():
+    """limiters.blend_weight (docs/theory.md, "U-MUSCL blend") on a uniform 1D grid with
+    central-difference gradients, edge from x = 0 to x = h: exactly chi for a linear field;
+    chi up to O(h^2) for a smooth one (u = x + x^3: the jump between the two extrapolations is
+    1.5 h^3 against a change of about h); 0 across a sawtooth, whose gradients vanish; and
+    half of chi where the jump is half the smoothness fraction of the change."""
+    from impactfv.scheme.limiters import SMOOTHNESS, blend_weight
+
+    chi = 0.6
+
+    def weight(u, h):
+        g_a = (u(h) - u(-h)) / (2 * h)
+        g_b = (u(2 * h) - u(0.0)) / (2 * h)
+        return blend_weight(chi, u(h) - u(0.0), g_a * h / 2, g_b * h / 2)
+
+    assert weight(lambda x: 3.0 * x - 1.0, 0.1) == pytest.approx(chi, abs=1e-12)
+    deficits = [chi - weight(lambda x: x + x ** 3, h) for h in (0.02, 0.01)]
+    assert deficits[0] > 0.0 and deficits[0] / deficits[1] == pytest.approx(4.0, rel=1e-2)
+    assert weight(lambda x: np.cos(np.pi * x / 0.1), 0.1) == 0.0
+    assert blend_weight(chi, 2.0, 0.45 - 0.5 * SMOOTHNESS, 1.55 - 0.5 * SMOOTHNESS) == \
+        pytest.approx(chi / 2)

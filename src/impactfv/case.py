@@ -58,9 +58,10 @@ class RunSettings(_Strict):
     geometric_flux: Literal["central", "upwind"] = "upwind"
     muscl_chi: float = Field(
         0.0, ge=0, le=1, description="blend of the reconstruction to an edge midpoint "
-        "(U-MUSCL): 0 extrapolates with the node's limited gradient, 1 takes the mean of the "
-        "edge's two nodes, both parts scaled by the node's limiter factor (docs/theory.md, "
-        "Reconstruction and limiter)")
+        "(U-MUSCL) where the field is smooth: 0 extrapolates with the node's limited "
+        "gradient, 1 takes the mean of the edge's two nodes, both parts scaled by the node's "
+        "limiter factor; grid-scale oscillations always get the gradient's (docs/theory.md, "
+        "U-MUSCL blend)")
     boundary_correction: Optional[Literal["normal", "full"]] = Field(
         None, description="the F equation's velocity on a free or loaded boundary face: the "
         "interior velocity corrected by the characteristic jump along the normal only, or in "

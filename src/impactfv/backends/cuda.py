@@ -118,6 +118,7 @@ def _make_kernels(d, m, kind):
     boundary_state = device(R.boundary_state)
     geometric_boundary_velocity = device(R.geometric_boundary_velocity)
     limiter_factor = device(L.limiter_factor)
+    blend_weight = device(L.blend_weight)
     rk_stage = device(T.rk_stage)
     heun_energy_excess = device(T.heun_energy_excess)
     RHO, CP, CS = M.RHO, M.CP, M.CS
@@ -290,9 +291,10 @@ def _make_kernels(d, m, kind):
                     va[i] += ra
                     vb[i] -= rb
                 else:
-                    change = 0.5 * bias * (v[b, i] - v[a, i])
-                    va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
-                    vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
+                    change = v[b, i] - v[a, i]
+                    c = blend_weight(bias, change, ra, rb)
+                    va[i] += (1.0 - c) * ra + 0.5 * c * grad[a, i, d] * change
+                    vb[i] -= (1.0 - c) * rb + 0.5 * c * grad[b, i, d] * change
         for side in range(2):
             node = a if side == 0 else b
             other = b if side == 0 else a
@@ -308,7 +310,11 @@ def _make_kernels(d, m, kind):
                         if bias == 0.0:
                             s += sign * r
                         else:
-                            s += (1.0 - bias) * sign * r + 0.5 * bias * grad[node, row, d] * (
+                            r_other = 0.0
+                            for K in range(d):
+                                r_other += grad[other, row, K] * half[e, K]
+                            c = blend_weight(bias, sign * (sigma[other, i, j] - s), r, r_other)
+                            s += (1.0 - c) * sign * r + 0.5 * c * grad[node, row, d] * (
                                 sigma[other, i, j] - s)
                     if side == 0:
                         Sa[i, j] = s

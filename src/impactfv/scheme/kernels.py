@@ -45,6 +45,7 @@ upwind_velocity = point(R.upwind_velocity)
 boundary_state = point(R.boundary_state)
 geometric_boundary_velocity = point(R.geometric_boundary_velocity)
 limiter_factor = point(L.limiter_factor)
+blend_weight = point(L.blend_weight)
 rk_stage = point(T.rk_stage)
 heun_energy_excess = point(T.heun_energy_excess)
 
@@ -243,8 +244,9 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
 def _reconstruct_stress(sigma, grad, a, b, sign, e, half, stress_reconstructed, bias, S, d):
     """S = sigma_a, reconstructed to the midpoint of edge e (sign +1 from its first node,
     -1 from its second; b the node at its other end) when the stress is reconstructed:
-    sigma_a + (1 - bias) grad sigma_a . (X_mid - X_a) + bias phi_a (sigma_b - sigma_a) / 2
-    (phi_a the limiter factor, grad[a, row, d])."""
+    sigma_a + (1 - c) grad sigma_a . (X_mid - X_a) + c phi_a (sigma_b - sigma_a) / 2
+    (phi_a the limiter factor, grad[a, row, d]; c the U-MUSCL weight of the edge,
+    limiters.blend_weight of bias)."""
     for i in range(d):
         for j in range(i, d):
             s = sigma[a, i, j]
@@ -256,8 +258,13 @@ def _reconstruct_stress(sigma, grad, a, b, sign, e, half, stress_reconstructed, 
                 if bias == 0.0:
                     s += sign * r
                 else:
-                    s += (1.0 - bias) * sign * r + 0.5 * bias * grad[a, row, d] * (
-                        sigma[b, i, j] - s)
+                    r_other = 0.0
+                    for K in range(d):
+                        r_other += grad[b, row, K] * half[e, K]
+                    # r, r_other and the change in the edge's direction: the weight is the
+                    # same from both sides
+                    c = blend_weight(bias, sign * (sigma[b, i, j] - s), r, r_other)
+                    s += (1.0 - c) * sign * r + 0.5 * c * grad[a, row, d] * (sigma[b, i, j] - s)
             S[i, j] = s
             S[j, i] = s
 
@@ -306,9 +313,10 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
                 va[i] += ra
                 vb[i] -= rb
             else:
-                change = 0.5 * bias * (v[b, i] - v[a, i])
-                va[i] += (1.0 - bias) * ra + grad[a, i, d] * change
-                vb[i] -= (1.0 - bias) * rb + grad[b, i, d] * change
+                change = v[b, i] - v[a, i]
+                c = blend_weight(bias, change, ra, rb)
+                va[i] += (1.0 - c) * ra + 0.5 * c * grad[a, i, d] * change
+                vb[i] -= (1.0 - c) * rb + 0.5 * c * grad[b, i, d] * change
     _reconstruct_stress(sigma, grad, a, b, 1.0, e, half, stress_reconstructed, bias, Sa, d)
     _reconstruct_stress(sigma, grad, b, a, -1.0, e, half, stress_reconstructed, bias, Sb, d)
     face_traction(Sa, n, area, ta)
