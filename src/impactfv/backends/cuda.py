@@ -295,33 +295,30 @@ def _make_kernels(d, m, kind):
                     c = blend_weight(bias, change, ra, rb)
                     va[i] += (1.0 - c) * ra + 0.5 * c * grad[a, i, d] * change
                     vb[i] -= (1.0 - c) * rb + 0.5 * c * grad[b, i, d] * change
-        for side in range(2):
-            node = a if side == 0 else b
-            other = b if side == 0 else a
-            sign = 1.0 if side == 0 else -1.0
-            for i in range(d):
-                for j in range(i, d):
-                    s = sigma[node, i, j]
-                    if stress_reconstructed:
-                        row = d + symmetric_index(i, j, d)
-                        r = 0.0
-                        for K in range(d):
-                            r += grad[node, row, K] * half[e, K]
-                        if bias == 0.0:
-                            s += sign * r
-                        else:
-                            r_other = 0.0
-                            for K in range(d):
-                                r_other += grad[other, row, K] * half[e, K]
-                            c = blend_weight(bias, sign * (sigma[other, i, j] - s), r, r_other)
-                            s += (1.0 - c) * sign * r + 0.5 * c * grad[node, row, d] * (
-                                sigma[other, i, j] - s)
-                    if side == 0:
-                        Sa[i, j] = s
-                        Sa[j, i] = s
+        # the CPU's kernels._reconstruct_stresses
+        for i in range(d):
+            for j in range(i, d):
+                sa = sigma[a, i, j]
+                sb = sigma[b, i, j]
+                if stress_reconstructed:
+                    row = d + symmetric_index(i, j, d)
+                    ra = 0.0
+                    rb = 0.0
+                    for K in range(d):
+                        ra += grad[a, row, K] * half[e, K]
+                        rb += grad[b, row, K] * half[e, K]
+                    if bias == 0.0:
+                        sa += ra
+                        sb -= rb
                     else:
-                        Sb[i, j] = s
-                        Sb[j, i] = s
+                        change = sb - sa
+                        c = blend_weight(bias, change, ra, rb)
+                        sa += (1.0 - c) * ra + 0.5 * c * grad[a, row, d] * change
+                        sb -= (1.0 - c) * rb + 0.5 * c * grad[b, row, d] * change
+                Sa[i, j] = sa
+                Sa[j, i] = sa
+                Sb[i, j] = sb
+                Sb[j, i] = sb
         face_traction(Sa, n, area, ta)
         face_traction(Sb, n, area, tb)
         for i in range(d):

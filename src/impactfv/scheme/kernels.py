@@ -241,32 +241,36 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
-def _reconstruct_stress(sigma, grad, a, b, sign, e, half, stress_reconstructed, bias, S, d):
-    """S = sigma_a, reconstructed to the midpoint of edge e (sign +1 from its first node,
-    -1 from its second; b the node at its other end) when the stress is reconstructed:
-    sigma_a + (1 - c) grad sigma_a . (X_mid - X_a) + c phi_a (sigma_b - sigma_a) / 2
-    (phi_a the limiter factor, grad[a, row, d]; c the U-MUSCL weight of the edge,
-    limiters.blend_weight of bias)."""
+def _reconstruct_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bias, Sa, Sb, d):
+    """Sa = sigma_a and Sb = sigma_b, reconstructed to the midpoint of edge e = ab when the
+    stress is reconstructed:
+    sigma_a + (1 - c) r_a + c phi_a (sigma_b - sigma_a) / 2 and
+    sigma_b - (1 - c) r_b - c phi_b (sigma_b - sigma_a) / 2,
+    r = grad sigma . (X_mid - X_a) (limited), phi the limiter factor (grad[., row, d]) and c
+    the U-MUSCL weight of the edge (limiters.blend_weight of bias), one for both sides."""
     for i in range(d):
         for j in range(i, d):
-            s = sigma[a, i, j]
+            sa = sigma[a, i, j]
+            sb = sigma[b, i, j]
             if stress_reconstructed:
                 row = d + symmetric_index(i, j, d)
-                r = 0.0
+                ra = 0.0
+                rb = 0.0
                 for K in range(d):
-                    r += grad[a, row, K] * half[e, K]
+                    ra += grad[a, row, K] * half[e, K]
+                    rb += grad[b, row, K] * half[e, K]
                 if bias == 0.0:
-                    s += sign * r
+                    sa += ra
+                    sb -= rb
                 else:
-                    r_other = 0.0
-                    for K in range(d):
-                        r_other += grad[b, row, K] * half[e, K]
-                    # r, r_other and the change in the edge's direction: the weight is the
-                    # same from both sides
-                    c = blend_weight(bias, sign * (sigma[b, i, j] - s), r, r_other)
-                    s += (1.0 - c) * sign * r + 0.5 * c * grad[a, row, d] * (sigma[b, i, j] - s)
-            S[i, j] = s
-            S[j, i] = s
+                    change = sb - sa
+                    c = blend_weight(bias, change, ra, rb)
+                    sa += (1.0 - c) * ra + 0.5 * c * grad[a, row, d] * change
+                    sb -= (1.0 - c) * rb + 0.5 * c * grad[b, row, d] * change
+            Sa[i, j] = sa
+            Sa[j, i] = sa
+            Sb[i, j] = sb
+            Sb[j, i] = sb
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
@@ -317,8 +321,7 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
                 c = blend_weight(bias, change, ra, rb)
                 va[i] += (1.0 - c) * ra + 0.5 * c * grad[a, i, d] * change
                 vb[i] -= (1.0 - c) * rb + 0.5 * c * grad[b, i, d] * change
-    _reconstruct_stress(sigma, grad, a, b, 1.0, e, half, stress_reconstructed, bias, Sa, d)
-    _reconstruct_stress(sigma, grad, b, a, -1.0, e, half, stress_reconstructed, bias, Sb, d)
+    _reconstruct_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bias, Sa, Sb, d)
     face_traction(Sa, n, area, ta)
     face_traction(Sb, n, area, tb)
     for i in range(d):
