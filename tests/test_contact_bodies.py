@@ -30,8 +30,8 @@ def areas(body):
     return 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
 
 
-def run_case(bodies, materials, contact, end_time):
-    case = {"run": {"end_time": end_time, "output_interval": end_time},
+def run_case(bodies, materials, contact, end_time, **run_settings):
+    case = {"run": {"end_time": end_time, "output_interval": end_time, **run_settings},
             "material": materials, "body": bodies, "contact": [contact]}
     return run(load_case(case))
 
@@ -75,6 +75,32 @@ def test_block_bounces_off_a_wall(model, tilt):
     if model == "slip":
         assert p1 @ tangent == pytest.approx(p0 @ tangent, abs=1e-10 * np.abs(p0).max())
     assert p1 @ normal > 0.3 * abs(p0 @ normal)                # bounced back
+
+
+def corner_first_on_a_tilted_wall(model, **run_settings):
+    """The block of test_block_bounces_off_a_wall on the wall tilted by 30 degrees."""
+    c, s = np.cos(np.radians(30.0)), np.sin(np.radians(30.0))
+    gap = 0.1e-3
+    block = {"name": "block", "material": COPPER["name"], "velocity": [0.0, -50.0],
+             "mesh": rect([-2e-3, 0.0], [4e-3, 4e-3])}
+    wall = {"bodies": ["block"], "model": model,
+            "wall": {"point": [2e-3, -gap / c], "normal": [-s, c]}}
+    return run_case([block], [COPPER], wall, 100e-6, **run_settings)
+
+
+@pytest.mark.parametrize("model", ["slip", "stick"])
+def test_compatibility_relaxation_keeps_the_landing_corner_whole(model):
+    """The block landing corner-first on the tilted wall: by default the triangle at the
+    corner ends at 0.10 (slip) and 0.08 (stick) of its area in the positions while F keeps
+    J = 1 there (docs/contact.md, "Known limitations"); with F relaxed towards the gradient
+    of the positions (run.compatibility_time = 30) it keeps more than 0.9 of it (measured:
+    0.955 and 0.977), and the run passes the checks of the default one, energy never rising
+    included."""
+    result = corner_first_on_a_tilted_wall(model, compatibility_time=30.0)
+    check_common(result)
+    body = result.bodies["block"]
+    initial = {"points": body["reference_points"], "triangles": body["triangles"]}
+    assert (areas(body) / areas(initial)).min() > 0.9
 
 
 @pytest.mark.parametrize("model", ["slip", "stick"])
