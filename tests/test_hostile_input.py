@@ -701,9 +701,11 @@ def test_memory_estimate_of_a_3d_run_matches_the_measured_peak(tmp_path):
      'divisions = [100000, 100000] }', "body[0].mesh.divisions"),
     ('{ generator = "disc", centre = [0.0, 0.0], radius = 1.0, rings = 1000000 }',
      "body[0].mesh.rings"),
+    ('{ generator = "annulus", centre = [0.0, 0.0], radius = 1.0, inner_radius = 0.5, '
+     'rings = 1000000 }', "body[0].mesh.rings"),
     ('{ generator = "rectangle", origin = [0.0, 0.0], size = [1.0, 1.0], '
      'divisions = [1000000000000000000000, 3] }', "body[0].mesh.divisions"),
-], ids=["1e10-nodes", "3e12-node-disc", "1e21-divisions"])
+], ids=["1e10-nodes", "3e12-node-disc", "2e12-node-annulus", "1e21-divisions"])
 def test_absurd_generated_meshes_are_refused_before_they_are_built(tmp_path, mesh, key):
     import subprocess
     import sys

@@ -543,7 +543,7 @@ def _refuse_meshes_too_large(spec: CaseSpec, source: str):
     if problem:
         i, largest = max(known, key=lambda item: item[1].nodes)
         mesh = spec.body[i].mesh
-        key, value = ("rings", mesh.rings) if mesh.generator == "disc" \
+        key, value = ("rings", mesh.rings) if mesh.generator in ("disc", "annulus") \
             else ("divisions", list(mesh.divisions))
         raise InputError(f"{source}: body[{i}].mesh.{key}: {value} makes "
                          f"{largest.nodes:,} nodes; the run {problem}")
