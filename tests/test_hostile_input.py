@@ -789,3 +789,22 @@ def test_a_history_of_millions_of_steps_counts_in_the_memory(tmp_path):
     assert not (out / "history.csv").exists()
     path.write_text(path.read_text().replace("max_steps = 5000000", "max_steps = 5"))
     assert run_cli("run", path, "-o", out, "--no-progress", env=env).returncode == 0
+
+
+@pytest.mark.parametrize("mesh,words", [
+    ('{ generator = "disc", centre = [0.0, 0.0], radius = 0.001, inner_radius = 0.0005, '
+     'rings = 4 }', ["inner_radius does not apply", '"disc"']),
+    ('{ generator = "disc", centre = [0.0, 0.0], radius = 0.001, rings = 4, '
+     'divisions = [8, 2] }', ["divisions does not apply", '"disc"']),
+    ('{ generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], '
+     'divisions = [8, 2], radius = 0.001 }', ["radius does not apply", '"rectangle"']),
+    ('{ file = "bar.msh", divisions = [8, 2] }', ["divisions does not apply", "mesh file"]),
+], ids=["disc-inner-radius", "disc-divisions", "rectangle-radius", "file-divisions"])
+def test_a_mesh_key_of_another_generator_is_refused(tmp_path, mesh, words):
+    """A key the chosen generator does not take is a mistake, not something to ignore: a
+    disc given an inner_radius would otherwise silently be a full disc, not a ring."""
+    path = tmp_path / "case.toml"
+    path.write_text(write_case(tmp_path).read_text().replace(
+        'mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], '
+        'divisions = [8, 2] }', f"mesh = {mesh}"))
+    assert_input_error(run_cli("check", path), "body[0].mesh", *words)

@@ -10,7 +10,7 @@ import difflib
 import math
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any, Literal, Optional, Union, get_args, get_origin
+from typing import Annotated, Any, ClassVar, Literal, Optional, Union, get_args, get_origin
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -131,11 +131,28 @@ class MeshSpec(_Strict):
     scale: float = Field(1.0, gt=0, allow_inf_nan=False,
                          description="factor applied to the mesh coordinates (1e-3: mm)")
 
+    #: the keys each source takes (besides scale)
+    KEYS: ClassVar[dict] = {"rectangle": ("origin", "size", "divisions", "pattern"),
+                            "box": ("origin", "size", "divisions"),
+                            "disc": ("centre", "radius", "rings"),
+                            "annulus": ("centre", "radius", "inner_radius", "rings"),
+                            None: ("file",)}
+
     @model_validator(mode="after")
     def _one_source(self):
         if (self.generator is None) == (self.file is None):
             raise ValueError("give either generator = \"rectangle\", \"box\", \"disc\" or "
                              "\"annulus\", or file = \"path\"")
+        # a key of another source is a mistake (inner_radius with a disc would otherwise
+        # silently give a full disc)
+        takes = self.KEYS[self.generator]
+        fields = type(self).model_fields
+        stray = sorted(k for k in set(self.model_fields_set) - set(takes) - {"generator", "scale"}
+                       if getattr(self, k) != fields[k].default)   # a dumped default is no key
+        if stray:
+            source = f'generator "{self.generator}"' if self.generator else "a mesh file"
+            raise ValueError(f"{', '.join(stray)} does not apply to {source}, which takes "
+                             f"{', '.join(takes)}")
         if self.generator in ("rectangle", "box"):
             d, count = (2, "two") if self.generator == "rectangle" else (3, "three")
             for key in ("origin", "size", "divisions"):
