@@ -171,9 +171,7 @@ class MeshSpec(_Strict):
             if self.pattern not in DIAGONAL_PATTERNS:
                 raise ValueError(f"pattern must be one of {', '.join(DIAGONAL_PATTERNS)}")
         if self.generator in ("disc", "annulus"):
-            keys = ("centre", "radius", "rings") + (("inner_radius",)
-                                                    if self.generator == "annulus" else ())
-            for key in keys:
+            for key in self.KEYS[self.generator]:
                 if getattr(self, key) is None:
                     raise ValueError(f"{self.generator} needs {key}")
             if self.radius <= 0:

@@ -9,5 +9,4 @@ from .dual import MedianDual, median_dual
 
 __all__ = ["Mesh", "renumber_for_locality", "validate_and_orient", "boundary_facets",
            "unique_edges", "DIAGONAL_PATTERNS", "annulus", "disc", "quads_to_triangles",
-           "rectangle",
-           "rectangle_quads", "read_mesh", "MedianDual", "median_dual"]
+           "rectangle", "rectangle_quads", "read_mesh", "MedianDual", "median_dual"]
