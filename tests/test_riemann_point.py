@@ -4,8 +4,10 @@
 import numpy as np
 import pytest
 
-from impactfv.scheme.riemann import (boundary_state, impedance_times, spatial_normal,
-                                     upwind_traction)
+from impactfv.materials import LAW, N_PROPS, NEO_HOOKEAN
+from impactfv.scheme.riemann import (boundary_state, face_area_normal, face_traction,
+                                     impedance_times, spatial_normal, upwind_traction,
+                                     upwind_traction_area)
 
 ZP, ZS = 1.3e7, 1.3e6
 
@@ -44,6 +46,41 @@ def test_spatial_normal_is_nanson(d):
     n = np.zeros(d)
     spatial_normal(F, N, n)
     assert np.allclose(n, unit(np.linalg.inv(F).T @ N), rtol=1e-12)
+
+
+@pytest.mark.parametrize("d", [2, 3])
+def test_the_area_vector_flux_is_the_unit_normal_flux_times_the_area(d):
+    """The interior flux assembly works with a face's area vectors (m = cof(F) A, forces
+    sigma m, impedances rho c |A|): the same force as the nominal traction of the unit-normal
+    form (seed eq. 9a) times the reference area |A|."""
+    rng = np.random.default_rng(7 + d)
+    F = np.eye(d) + 0.2 * rng.standard_normal((d, d))
+    S = rng.standard_normal((d, d))
+    sigma_a, sigma_b = 1e6 * (S + S.T), 1e6 * (S @ S.T)
+    dv = rng.standard_normal(d)
+    N = unit(rng.standard_normal(d))
+    area = 3.7e-4
+    finite_strain = np.zeros(N_PROPS)
+    finite_strain[LAW] = NEO_HOOKEAN
+    m = np.zeros(d)
+    inverse_m2 = face_area_normal(F, area * N, finite_strain, m)
+    n = np.zeros(d)
+    ratio = spatial_normal(F, N, n)          # da/dA
+    assert np.allclose(m, area * ratio * n, rtol=1e-13)
+    assert inverse_m2 * (area * ratio) ** 2 == pytest.approx(1.0, rel=1e-13)
+    # the unit-normal form: mean nominal traction plus Z [[v]] / 2, times |A|
+    ta, tb, t = np.zeros(d), np.zeros(d), np.zeros(d)
+    face_traction(sigma_a, n, ratio, ta)
+    face_traction(sigma_b, n, ratio, tb)
+    upwind_traction(0.5 * (ta + tb), dv, ZP, ZS, n, t)
+    # the area-vector form
+    fa, fb, f = np.zeros(d), np.zeros(d), np.zeros(d)
+    face_traction(sigma_a, m, 1.0, fa)
+    face_traction(sigma_b, m, 1.0, fb)
+    upwind_traction_area(0.5 * (fa + fb), dv, ZP * area, ZS * area, m, inverse_m2, f)
+    assert np.allclose(f, area * t, rtol=1e-12, atol=1e-12 * np.abs(area * t).max())
+    assert np.allclose(fb - fa, area * (tb - ta), rtol=1e-12,
+                       atol=1e-12 * np.abs(area * (tb - ta)).max())
 
 
 @pytest.mark.parametrize("fix", [(False, False), (True, False), (False, True), (True, True),

@@ -112,7 +112,8 @@ def _make_kernels(d, m, kind):
     symmetric_index = device(_symmetric_index)
     face_geometry = device(R.face_geometry)
     face_traction = device(R.face_traction)
-    upwind_traction = device(R.upwind_traction)
+    face_area_normal = device(R.face_area_normal)
+    upwind_traction_area = device(R.upwind_traction_area)
     central_velocity = device(R.central_velocity)
     upwind_velocity = device(R.upwind_velocity)
     boundary_state = device(R.boundary_state)
@@ -177,7 +178,7 @@ def _make_kernels(d, m, kind):
                 face = own * v[a, i]
                 for o in range(bface_others.shape[1]):
                     face += v[bface_others[h, o], i]
-                face /= denominator
+                face *= 1.0 / denominator    # as the CPU: 1/8 exact in 3D
                 for J in range(d):
                     g[i, J] += face * bface_C[h, J]
         inv = 1.0 / volume[a]
@@ -267,14 +268,15 @@ def _make_kernels(d, m, kind):
         a = edges[e, 0]
         b = edges[e, 1]
         props = table[node_material[a]]
-        zp = props[RHO] * props[CP]
-        zs = props[RHO] * props[CS]
-        ln = C_len[e]
+        # the face through its area vectors, as the CPU's kernels._flux_edge
+        area = C_len[e]
+        zp = props[RHO] * props[CP] * area
+        zs = props[RHO] * props[CS] * area
         for i in range(d):
-            N[i] = C[e, i] / ln
+            N[i] = C[e, i]
             for J in range(d):
                 Fe[i, J] = 0.5 * (F[a, i, J] + F[b, i, J])
-        area = face_geometry(Fe, N, props, n)
+        inverse_m2 = face_area_normal(Fe, N, props, n)
         for i in range(d):
             va[i] = v[a, i]
             vb[i] = v[b, i]
@@ -319,16 +321,16 @@ def _make_kernels(d, m, kind):
                 Sa[j, i] = sa
                 Sb[i, j] = sb
                 Sb[j, i] = sb
-        face_traction(Sa, n, area, ta)
-        face_traction(Sb, n, area, tb)
+        face_traction(Sa, n, 1.0, ta)
+        face_traction(Sb, n, 1.0, tb)
         for i in range(d):
             w[i] = vb[i] - va[i]
             tbar[i] = 0.5 * (ta[i] + tb[i])
             tjump[i] = tb[i] - ta[i]
-        upwind_traction(tbar, w, zp, zs, n, t)
+        upwind_traction_area(tbar, w, zp, zs, n, inverse_m2, t)
         for i in range(d):
-            cuda.atomic.add(force, (a, i), t[i] * ln)
-            cuda.atomic.add(force, (b, i), -(t[i] * ln))
+            cuda.atomic.add(force, (a, i), t[i])
+            cuda.atomic.add(force, (b, i), -t[i])
         if upwind_geometric:
             upwind_velocity(va, vb, tjump, zp, u)
         for i in range(d):
@@ -368,6 +370,7 @@ def _make_kernels(d, m, kind):
         props = table[node_material[a]]
         zp = props[RHO] * props[CP]
         zs = props[RHO] * props[CS]
+        inverse_denominator = 1.0 / denominator
         ln = 0.0
         for J in range(d):
             ln += bface_C[h, J] * bface_C[h, J]
@@ -378,15 +381,15 @@ def _make_kernels(d, m, kind):
             vi[i] = own * v[a, i]
             for o in range(bface_others.shape[1]):
                 vi[i] += v[bface_others[h, o], i]
-            vi[i] /= denominator
+            vi[i] *= inverse_denominator
             for J in range(d):
                 Fi[i, J] = own * F[a, i, J]
                 Si[i, J] = own * sigma[a, i, J]
                 for o in range(bface_others.shape[1]):
                     Fi[i, J] += F[bface_others[h, o], i, J]
                     Si[i, J] += sigma[bface_others[h, o], i, J]
-                Fi[i, J] /= denominator
-                Si[i, J] /= denominator
+                Fi[i, J] *= inverse_denominator
+                Si[i, J] *= inverse_denominator
         area = face_geometry(Fi, N, props, n)
         face_traction(Si, n, area, ti)
         for i in range(d):

@@ -39,7 +39,8 @@ symmetric_index = point(_symmetric_index)
 spatial_normal = point(R.spatial_normal)
 face_geometry = point(R.face_geometry)
 face_traction = point(R.face_traction)
-upwind_traction = point(R.upwind_traction)
+face_area_normal = point(R.face_area_normal)
+upwind_traction_area = point(R.upwind_traction_area)
 central_velocity = point(R.central_velocity)
 upwind_velocity = point(R.upwind_velocity)
 boundary_state = point(R.boundary_state)
@@ -124,6 +125,8 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
     d = len(dim)
     m = len(components)
     own, denominator = closure
+    # the closure's mean as a product (1/8 is exact in 3D; one division per call, not per face)
+    inverse_denominator = 1.0 / denominator
     for a in prange(v.shape[0]):
         g = local_scratch(m * d)      # the unscaled gradient sums, component (i, J) at slot()
         lo = local_components(m)
@@ -160,7 +163,7 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                     for i in range(m):
                         face[i] += v[o, i]
                 for i in range(m):
-                    face[i] /= denominator
+                    face[i] *= inverse_denominator
                 for J in range(d):
                     c = bface_C[h, J]
                     for i in range(m):
@@ -170,7 +173,7 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                     mean = own * ua[i]
                     for q in range(d - 1):
                         mean += v[bface_others[h, q], i]
-                    mean /= denominator
+                    mean *= inverse_denominator
                     for J in range(d):
                         g[slot(i, J, d, m)] += mean * bface_C[h, J]
         inv = 1.0 / volume[a]
@@ -281,26 +284,27 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
     added to its first node's running sums force_a, dF_a (held by the caller while it
     walks that node's edges) and subtracted from its second node's rows of force, dF.
 
-    Both sides' tractions are sigma n da/dA with the face's own normal n and area ratio
-    (from the mean F of the edge), so a rigid rotation of a stressed state makes no traction
-    jump. With ``use_reconstruction`` the velocities are reconstructed linearly to the edge
+    Both sides' forces are sigma m, with m = da n = cof(F) C_ab the face's own spatial area
+    vector (from the mean F of the edge), so a rigid rotation of a stressed state makes no
+    traction jump; the face is handled through its area vectors throughout (impedances
+    rho c |C_ab|), which needs neither its unit normal nor a division by its area. With
+    ``use_reconstruction`` the velocities are reconstructed linearly to the edge
     midpoint from each side (grad rows 0..d-1); with ``stress_reconstructed`` the stresses as
     well (grad rows d..: the independent components of sigma).
     """
-    N, n, va, vb, w, ta, tb = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
-    tbar, tjump, t, u = work[7], work[8], work[9], work[10]
+    A, m, va, vb, w, fa, fb = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
+    fbar, fjump, f, u = work[7], work[8], work[9], work[10]
     a = edges[e, 0]
     b = edges[e, 1]
     props = table[node_material[a]]
-    zp = props[RHO] * props[CP]
-    zs = props[RHO] * props[CS]
-    ln = C_len[e]
-    inverse_ln = 1.0 / ln
+    area = C_len[e]
+    zp = props[RHO] * props[CP] * area
+    zs = props[RHO] * props[CS] * area
     for i in range(d):
-        N[i] = C[e, i] * inverse_ln
+        A[i] = C[e, i]
         for J in range(d):
             Fe[i, J] = 0.5 * (F[a, i, J] + F[b, i, J])
-    area = face_geometry(Fe, N, props, n)
+    inverse_m2 = face_area_normal(Fe, A, props, m)
     load_vector(v, a, va)
     load_vector(v, b, vb)
     if not upwind_geometric:
@@ -322,18 +326,19 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
                 va[i] += (1.0 - c) * ra + 0.5 * c * grad[a, i, d] * change
                 vb[i] -= (1.0 - c) * rb + 0.5 * c * grad[b, i, d] * change
     _reconstruct_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bias, Sa, Sb, d)
-    face_traction(Sa, n, area, ta)
-    face_traction(Sb, n, area, tb)
+    face_traction(Sa, m, 1.0, fa)
+    face_traction(Sb, m, 1.0, fb)
     for i in range(d):
         w[i] = vb[i] - va[i]
-        tbar[i] = 0.5 * (ta[i] + tb[i])
-        tjump[i] = tb[i] - ta[i]
-    upwind_traction(tbar, w, zp, zs, n, t)
+        fbar[i] = 0.5 * (fa[i] + fb[i])
+        fjump[i] = fb[i] - fa[i]
+    upwind_traction_area(fbar, w, zp, zs, m, inverse_m2, f)
     for i in range(d):
-        force_a[i] += t[i] * ln
-        force[b, i] -= t[i] * ln
+        force_a[i] += f[i]
+        force[b, i] -= f[i]
     if upwind_geometric:
-        upwind_velocity(va, vb, tjump, zp, u)
+        # [[f]] / (2 rho c_p |C|) = [[t]] / (2 rho c_p)
+        upwind_velocity(va, vb, fjump, zp, u)
     for i in range(d):
         for J in range(d):
             dF_a[i, J] += u[i] * C[e, J]
@@ -401,6 +406,7 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     """
     d = len(dim)
     own, denominator = closure
+    inverse_denominator = 1.0 / denominator
     for a in prange(force.shape[0]):
         for i in range(d):
             force[a, i] = 0.0
@@ -453,7 +459,7 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
             vi[i] = own * v[a, i]
             for q in range(d - 1):
                 vi[i] += v[bface_others[h, q], i]
-            vi[i] /= denominator
+            vi[i] *= inverse_denominator
             for J in range(d):
                 Fi[i, J] = own * F[a, i, J]
                 Si[i, J] = own * sigma[a, i, J]
@@ -461,8 +467,8 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
                     o = bface_others[h, q]
                     Fi[i, J] += F[o, i, J]
                     Si[i, J] += sigma[o, i, J]
-                Fi[i, J] /= denominator
-                Si[i, J] /= denominator
+                Fi[i, J] *= inverse_denominator
+                Si[i, J] *= inverse_denominator
         area = face_geometry(Fi, N, props, n)
         face_traction(Si, n, area, ti)
         # a component the node's velocity is held at (e.g. by the clamp of a neighbouring

@@ -29,6 +29,21 @@ def face_geometry(F, N, props, n):
     return spatial_normal(F, N, n)
 
 
+def face_area_normal(F, A, props, m):
+    """Spatial area vector m = da n of a face of reference area vector A = dA N and
+    deformation F, written into m: cof(F) A (Nanson: da n = cof(F) dA N) for finite-strain
+    laws, A itself for small-strain laws. Returns 1 / |m|^2, with which the projections on
+    the unit normal need no square root: (n . w) n = (m . w) m / |m|^2. The force of a
+    Cauchy stress on the face is sigma m (face_traction with area 1); with A of unit length
+    m is (da/dA) n, and sigma m the nominal traction P N."""
+    if small_strain(props):
+        for i in range(A.shape[0]):
+            m[i] = A[i]
+    else:
+        cofactor_times(F, A, m)
+    return 1.0 / dot(m, m)
+
+
 def face_traction(sigma, n, area, t):
     """Nominal traction (force per unit reference area) of a face with spatial normal n and
     area ratio da/dA: t = sigma n da/dA, which is P N when sigma, n and da/dA come from the
@@ -57,6 +72,18 @@ def upwind_traction(tbar, dv, zp, zs, n, t):
     impedance_times(zp, zs, n, dv, t)
     for i in range(n.shape[0]):
         t[i] = tbar[i] + 0.5 * t[i]
+
+
+def upwind_traction_area(fbar, dv, zp, zs, m, inverse_m2, f):
+    """upwind_traction on a face given by its area vector m (face_area_normal) and 1 / |m|^2:
+    f = fbar + Z [[v]] / 2 with Z [[v]] = zs [[v]] + (zp - zs) (n . [[v]]) n and
+    (n . [[v]]) n = (m . [[v]]) m / |m|^2. With fbar the mean force of the two sides' stresses
+    on a face of reference area |A| and impedances rho c |A| this is the face's whole upwind
+    force, |A| times the traction of upwind_traction, without the square root and the
+    divisions of a unit normal."""
+    wn = dot(m, dv) * inverse_m2
+    for i in range(m.shape[0]):
+        f[i] = fbar[i] + 0.5 * (zs * dv[i] + (zp - zs) * wn * m[i])
 
 
 def central_velocity(va, vb, v):
@@ -102,9 +129,11 @@ def boundary_state(v, t, zp, zs, n, fixed, v_given, t_given, Z, rhs, vC, tC):
         jn = 0.0
         for i in range(d):
             jn += (t_given[i] - t[i]) * n[i]
+        compliance_s = 1.0 / zs
+        compliance_difference = 1.0 / zp - compliance_s
         for i in range(d):
             jump = t_given[i] - t[i]
-            vC[i] = v[i] + jump / zs + (1.0 / zp - 1.0 / zs) * jn * n[i]
+            vC[i] = v[i] + jump * compliance_s + compliance_difference * jn * n[i]
             tC[i] = t_given[i]
         return
     # unknown dv = v^C - v with dt = Z dv; per component one of (dv_i, dt_i) is known
@@ -151,10 +180,11 @@ def geometric_boundary_velocity(w, t, tC, vC, fixed, zp, n, tangential, u):
     jn = 0.0
     for i in range(d):
         jn += (tC[i] - t[i]) * n[i]
+    compliance = 1.0 / zp
     for i in range(d):
         normal_part = jn * n[i]
         u[i] = vC[i] if fixed[i] else \
-            w[i] + (normal_part + tangential * (tC[i] - t[i] - normal_part)) / zp
+            w[i] + (normal_part + tangential * (tC[i] - t[i] - normal_part)) * compliance
 
 
 def _impedance_entry(zp, zs, n, i, j):
