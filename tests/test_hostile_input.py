@@ -808,3 +808,20 @@ def test_a_mesh_key_of_another_generator_is_refused(tmp_path, mesh, words):
         'mesh = { generator = "rectangle", origin = [0.0, 0.0], size = [0.004, 0.001], '
         'divisions = [8, 2] }', f"mesh = {mesh}"))
     assert_input_error(run_cli("check", path), "body[0].mesh", *words)
+
+
+@pytest.mark.parametrize("boundary,words,refused", [
+    ('velocity = { x = 0.0 }\ntraction = [1.0e5, 0.0]', ["traction[0]", "velocity.x"], True),
+    ('velocity = { y = 0.0 }\ntraction = [0.0, "1e5*t"]', ["traction[1]", "velocity.y"], True),
+    ('velocity = { x = 0.0 }\ntraction = [0.0, 1.0e5]', [], False),
+], ids=["number", "expression", "other-component"])
+def test_a_traction_on_a_held_component_is_refused(tmp_path, boundary, words, refused):
+    """A prescribed velocity wins per component (docs/case-file.md), so a traction given on a
+    component the same entry holds would be dropped without a word: it is refused, naming
+    both. A traction on a component the entry leaves free is a mixed condition and runs."""
+    path = write_case(tmp_path, extra=f'\n[[body.boundary]]\nregion = "xmin"\n{boundary}\n')
+    proc = run_cli("check", path)
+    if refused:
+        assert_input_error(proc, "body[0].boundary[0]", *words)
+    else:
+        assert proc.returncode == 0, proc.stderr

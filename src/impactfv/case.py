@@ -211,6 +211,17 @@ class BoundarySpec(_Strict):
         if self.traction is not None:
             for value in self.traction:
                 _finite_load(value)
+        if self.velocity is not None and self.traction is not None:
+            # a prescribed velocity wins per component (docs/case-file.md): a traction given
+            # on a held component would be dropped without a word
+            held = (self.velocity.x, self.velocity.y, self.velocity.z)
+            for i, (h, t) in enumerate(zip(held, self.traction)):
+                if h is not None and not (isinstance(t, (int, float)) and t == 0):
+                    axis = "xyz"[i]
+                    raise ValueError(
+                        f"traction[{i}] acts along {axis}, which velocity.{axis} holds: a "
+                        f"prescribed velocity wins per component, so this traction would be "
+                        f"ignored (give 0 there, or drop velocity.{axis})")
         if self.amplitude is not None:
             _check_amplitude(self.amplitude)
         return self
