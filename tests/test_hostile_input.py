@@ -825,3 +825,34 @@ def test_a_traction_on_a_held_component_is_refused(tmp_path, boundary, words, re
         assert_input_error(proc, "body[0].boundary[0]", *words)
     else:
         assert proc.returncode == 0, proc.stderr
+
+
+@pytest.mark.parametrize("run_extra,words", [
+    ('method = "fem-t3"\nmuscl_chi = 0.6', ["muscl_chi", 'method = "fem-t3"', "ignore"]),
+    ('method = "fem-q4md"\ngeometric_flux = "central"', ["geometric_flux", "fem-q4md"]),
+    ('method = "fem-t3"\norder = 1', ["order", "fem-t3"]),
+    ('method = "fem-q4md"\ncompatibility_time = 30.0', ["compatibility_time", "fem-q4md"]),
+    ('order = 1\nmuscl_chi = 0.5', ["muscl_chi", "order = 1"]),
+], ids=["blend-fe", "flux-fe", "order-fe", "relaxation-fe", "blend-order-1"])
+def test_an_option_the_chosen_method_would_ignore_is_refused(tmp_path, run_extra, words):
+    """A finite-volume option given with an FE method (or the order-2 blend at order 1) would
+    be dropped without a word: it is refused, naming it. The defaults written out are fine."""
+    path = write_case(tmp_path, run_extra=run_extra)
+    assert_input_error(run_cli("check", path), "run", *words)
+    fine = write_case(tmp_path, name="fine.toml", run_extra='method = "fem-t3"\norder = 2\n'
+                      'limiter = "barth_jespersen"\nmuscl_chi = 0.0')
+    assert run_cli("check", fine).returncode == 0
+
+
+def test_compare_gives_the_fe_methods_the_case_without_the_fv_options(tmp_path):
+    """`compare` runs an FV case with its options (here the U-MUSCL blend and the central
+    flux) against the FE methods, which take the same case without them."""
+    from impactfv.case import load_case
+    from impactfv.compare import method_case
+
+    path = write_case(tmp_path, run_extra='muscl_chi = 0.6\ngeometric_flux = "central"')
+    case = load_case(path)
+    fe = method_case(case, "fem-t3")
+    assert fe.spec.run.method == "fem-t3" and fe.spec.run.muscl_chi == 0.0
+    fv = method_case(case, "fv")
+    assert fv.spec.run.muscl_chi == 0.6 and fv.spec.run.geometric_flux == "central"

@@ -86,11 +86,30 @@ class RunSettings(_Strict):
             raise ValueError("must be a finite number")
         return value
 
+    # options of the finite-volume scheme alone: the FE baselines would ignore them
+    FV_ONLY: ClassVar[tuple] = ("order", "limiter", "geometric_flux", "muscl_chi",
+                                "boundary_correction", "compatibility_time")
+
     @model_validator(mode="after")
     def _sensible_interval(self):
         if self.output_interval is not None and self.output_interval < 1e-9 * self.end_time:
             raise ValueError(f"output_interval must be at least 1e-9 x end_time "
                              f"({1e-9 * self.end_time:.3g} s)")
+        return self
+
+    @model_validator(mode="after")
+    def _no_option_that_would_be_ignored(self):
+        # a value other than the default (a dumped default, as `compare` re-loads its case,
+        # is not a choice the user made) of an option the chosen method does not have
+        if self.method != "fv":
+            for key in self.FV_ONLY:
+                if getattr(self, key) != type(self).model_fields[key].default:
+                    raise ValueError(f"{key} is an option of method = \"fv\"; method = "
+                                     f"\"{self.method}\" would ignore it (drop it, or run "
+                                     f"`impactfv compare` to run both)")
+        elif self.order == 1 and self.muscl_chi != 0.0:
+            raise ValueError("muscl_chi blends the order-2 reconstruction; order = 1 has "
+                             "none (drop muscl_chi, or set order = 2)")
         return self
 
 

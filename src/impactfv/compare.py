@@ -51,7 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .case import Case, load_case
+from .case import Case, RunSettings, load_case
 from .errors import InputError
 from .mesh.edges import unique_edges
 
@@ -72,6 +72,10 @@ def method_case(case: Case, method: str, divisions=None) -> Case:
     with ``divisions``), with a history row every step (the metrics integrate it)."""
     data = case.spec.model_dump(exclude_none=True, by_alias=True)
     data["run"]["method"] = method
+    if method != "fv":
+        # the FV scheme's own options (order, limiter, ...) are not the FE methods' to take
+        for key in RunSettings.FV_ONLY:
+            data["run"].pop(key, None)
     data.setdefault("output", {})["history_every"] = 1
     for body in data["body"]:
         if divisions is not None and body["mesh"].get("generator") == "rectangle":
