@@ -254,7 +254,7 @@ def _make_kernels(d, m, kind):
         Fe = cuda.local.array((d, d), float64)
         Sa = cuda.local.array((d, d), float64)
         Sb = cuda.local.array((d, d), float64)
-        N = cuda.local.array(d, float64)
+        A = cuda.local.array(d, float64)
         n = cuda.local.array(d, float64)
         va = cuda.local.array(d, float64)
         vb = cuda.local.array(d, float64)
@@ -268,15 +268,16 @@ def _make_kernels(d, m, kind):
         a = edges[e, 0]
         b = edges[e, 1]
         props = table[node_material[a]]
-        # the face through its area vectors, as the CPU's kernels._flux_edge
+        # the face through its area vectors, as the CPU's kernels._flux_edge: n holds
+        # m = cof(F) C, and ta, tb, t are the face's forces (not per unit area)
         area = C_len[e]
         zp = props[RHO] * props[CP] * area
         zs = props[RHO] * props[CS] * area
         for i in range(d):
-            N[i] = C[e, i]
+            A[i] = C[e, i]
             for J in range(d):
                 Fe[i, J] = 0.5 * (F[a, i, J] + F[b, i, J])
-        inverse_m2 = face_area_normal(Fe, N, props, n)
+        inverse_m2 = face_area_normal(Fe, A, props, n)
         for i in range(d):
             va[i] = v[a, i]
             vb[i] = v[b, i]
