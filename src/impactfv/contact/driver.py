@@ -19,7 +19,7 @@ from ..geometry.bins import build_bins
 from ..geometry.surfaces import surface_facets
 from ..mesh.edges import facet_index
 from . import riemann_step as RS
-from .overlap import closing_fractions, contact_pieces
+from .overlap import boundary_straightness, closing_fractions, contact_pieces
 from .search import (find_partners, forget_partners, near_each_other, surface_normals,
                      wall_gaps)
 
@@ -105,6 +105,7 @@ class ContactSystem:
         owners = disc.bface_node[self.faces]
         self.face_list = self.faces[np.argsort(owners, kind="stable")]
         self.face_start = np.concatenate([[0], np.cumsum(np.bincount(owners, minlength=n))])
+        self.straightness = boundary_straightness(disc.X, disc.bface_node, disc.bface_others)
         # nodes all of whose boundary faces are contact faces (not the ends of a contact face)
         self.flat = np.diff(self.face_start) == np.bincount(disc.bface_node, minlength=n)
         self.flat &= np.diff(self.face_start) > 0
@@ -288,7 +289,8 @@ class ContactSystem:
         while True:
             count = contact_pieces(x, disc.X, slave_nodes, self.partner, self.partner_dist,
                                    self.normal, phi, self.face_start, self.face_list,
-                                   disc.bface_others, disc.bface_C, segs, *bins,
+                                   disc.bface_others, disc.bface_C, self.straightness,
+                                   segs, *bins,
                                    self.piece_node,
                                    self.piece_face, self.piece_partner, self.piece_segment,
                                    self.piece_length, self.piece_face_length,

@@ -57,9 +57,32 @@ def closing_fractions(x, v, slave, partner, partner_w, gap, normal, facets, memo
         phi[a] = step_fraction_in_contact(gap[a], gdot, dt, memory[a] > 0)
 
 
+def boundary_straightness(X, bface_node, bface_others):
+    """How straight the reference boundary is at each node: -cos of the angle between its
+    two boundary half-edges (1 where the boundary goes straight on, 0 at a right corner),
+    clipped at 0 for sharper corners; 1 at nodes without exactly two boundary half-edges
+    (interior nodes, 3D). Set once, from the reference geometry: a corner of the body stays
+    its corner."""
+    n, d = X.shape
+    straightness = np.ones(n)
+    if d != 2 or len(bface_node) == 0:
+        return straightness
+    count = np.bincount(bface_node, minlength=n)
+    order = np.argsort(bface_node, kind="stable")
+    nodes = bface_node[order]
+    pairs = order[np.isin(nodes, np.flatnonzero(count == 2))].reshape(-1, 2)
+    a = bface_node[pairs[:, 0]]
+    d1 = X[bface_others[pairs[:, 0], 0]] - X[a]
+    d2 = X[bface_others[pairs[:, 1], 0]] - X[a]
+    cosine = np.einsum("ij,ij->i", d1, d2) / (np.linalg.norm(d1, axis=1)
+                                                * np.linalg.norm(d2, axis=1))
+    straightness[a] = np.maximum(0.0, -cosine)
+    return straightness
+
+
 @njit(cache=True, error_model="numpy")
 def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
-                   bface_others, bface_C, facets, origin, h, shape, start, items, piece_node,
+                   bface_others, bface_C, straightness, facets, origin, h, shape, start, items, piece_node,
                    piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
                    piece_normal, skip_start, skip_nodes):
     """Pieces of the slave nodes in contact this step (phi > 0) against the master facets
@@ -70,14 +93,18 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
     farther from the node than the closest one plus the size of the face: a face cannot
     touch a surface farther away than its own size. The common normal of a piece is the
     mean of the face's outward normal and the facet's inward one (seed section 3: "a unique
-    common normal"); both passes of a contact then see the same normal, also at the ends of
-    a face where the two surfaces are not parallel.
+    common normal"), in 2D each weighted by how straight its own body's boundary is at the
+    node the piece belongs to (``straightness``, 1 on a straight boundary, 0 at a right or
+    sharper corner): a corner has no normal of its own, so where a corner meets a face the
+    face's normal is the contact normal (docs/contact.md, "Corners on faces"). Both passes
+    of a contact then see the same normal, also at the ends of a face where the two
+    surfaces are not parallel.
     Returns the number of pieces; when it exceeds the capacity of the piece arrays only the
     count is meaningful and the caller grows them and calls again.
     """
     if x.shape[1] == 2:
         return _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start,
-                          face_list, bface_others, bface_C, facets, origin, h, shape, start,
+                          face_list, bface_others, bface_C, straightness, facets, origin, h, shape, start,
                           items, piece_node, piece_face, piece_partner, piece_segment,
                           piece_length, piece_face_length, piece_normal, skip_start,
                           skip_nodes)
@@ -179,9 +206,9 @@ def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
-                   bface_others, bface_C, segs, origin, h, shape, start, items, piece_node,
-                   piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
-                   piece_normal, skip_start, skip_nodes):
+                   bface_others, bface_C, straightness, segs, origin, h, shape, start, items,
+                   piece_node, piece_face, piece_partner, piece_segment, piece_length,
+                   piece_face_length, piece_normal, skip_start, skip_nodes):
     """contact_pieces in 2D: half-edges against half-segments, by interval overlap."""
     capacity = piece_node.shape[0]
     count = 0
@@ -237,8 +264,14 @@ def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
                         piece_segment[count] = sm
                         piece_length[count] = ov * Ls
                         piece_face_length[count] = lh
-                        c1 = f1 + s1
-                        c2 = f2 + s2
+                        wf = straightness[a]
+                        ws = straightness[b]
+                        if wf + ws == 0.0:
+                            # two corners: neither has a normal of its own
+                            wf = 1.0
+                            ws = 1.0
+                        c1 = wf * f1 + ws * s1
+                        c2 = wf * f2 + ws * s2
                         cl = math.sqrt(c1 * c1 + c2 * c2)
                         piece_normal[count, 0] = c1 / cl
                         piece_normal[count, 1] = c2 / cl
