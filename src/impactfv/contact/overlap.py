@@ -82,9 +82,9 @@ def boundary_straightness(X, bface_node, bface_others):
 
 @njit(cache=True, error_model="numpy")
 def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
-                   bface_others, bface_C, straightness, facets, origin, h, shape, start, items, piece_node,
-                   piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
-                   piece_normal, skip_start, skip_nodes):
+                   bface_others, bface_C, straightness, facets, origin, h, shape, start, items,
+                   piece_node, piece_face, piece_partner, piece_segment, piece_length,
+                   piece_face_length, piece_normal, skip_start, skip_nodes):
     """Pieces of the slave nodes in contact this step (phi > 0) against the master facets
     near them, in node order: piece_length is the size of the overlap (a length in 2D, an
     area in 3D), piece_face_length the size of the slave's face.
@@ -96,7 +96,7 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
     common normal"), in 2D each weighted by how straight its own body's boundary is at the
     node the piece belongs to (``straightness``, 1 on a straight boundary, 0 at a right or
     sharper corner): a corner has no normal of its own, so where a corner meets a face the
-    face's normal is the contact normal (docs/contact.md, "Corners on faces"). Both passes
+    face's normal is the contact normal (docs/contact.md, "Pieces"). Both passes
     of a contact then see the same normal, also at the ends of a face where the two
     surfaces are not parallel.
     Returns the number of pieces; when it exceeds the capacity of the piece arrays only the
@@ -104,10 +104,10 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
     """
     if x.shape[1] == 2:
         return _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start,
-                          face_list, bface_others, bface_C, straightness, facets, origin, h, shape, start,
-                          items, piece_node, piece_face, piece_partner, piece_segment,
-                          piece_length, piece_face_length, piece_normal, skip_start,
-                          skip_nodes)
+                          face_list, bface_others, bface_C, straightness, facets, origin, h,
+                          shape, start, items, piece_node, piece_face, piece_partner,
+                          piece_segment, piece_length, piece_face_length, piece_normal,
+                          skip_start, skip_nodes)
     return _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                       bface_others, bface_C, facets, origin, h, shape, start, items,
                       piece_node, piece_face, piece_partner, piece_segment, piece_length,
