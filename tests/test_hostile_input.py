@@ -833,10 +833,15 @@ def test_a_traction_on_a_held_component_is_refused(tmp_path, boundary, words, re
     ('method = "fem-t3"\norder = 1', ["order", "fem-t3"]),
     ('method = "fem-q4md"\ncompatibility_time = 30.0', ["compatibility_time", "fem-q4md"]),
     ('order = 1\nmuscl_chi = 0.5', ["muscl_chi", "order = 1"]),
-], ids=["blend-fe", "flux-fe", "order-fe", "relaxation-fe", "blend-order-1"])
+    ('method = "fem-t3"\nsmooth_switch = 0.6', ["smooth_switch", 'method = "fem-t3"']),
+    ('order = 1\nsmooth_switch = 0.5', ["smooth_switch", "order = 1"]),
+    ('muscl_chi = 0.6\nsmooth_switch = 0.6', ["muscl_chi", "smooth_switch", "alternatives"]),
+], ids=["blend-fe", "flux-fe", "order-fe", "relaxation-fe", "blend-order-1", "switch-fe",
+        "switch-order-1", "blend-and-switch"])
 def test_an_option_the_chosen_method_would_ignore_is_refused(tmp_path, run_extra, words):
-    """A finite-volume option given with an FE method (or the order-2 blend at order 1) would
-    be dropped without a word: it is refused, naming it. The defaults written out are fine."""
+    """A finite-volume option given with an FE method (or the order-2 blend or switch at
+    order 1) would be dropped without a word: it is refused, naming it; so is the U-MUSCL
+    blend together with the smoothness switch. The defaults written out are fine."""
     path = write_case(tmp_path, run_extra=run_extra)
     assert_input_error(run_cli("check", path), "run", *words)
     fine = write_case(tmp_path, name="fine.toml", run_extra='method = "fem-t3"\norder = 2\n'

@@ -105,3 +105,20 @@ def test_boundary_state_meets_prescriptions_and_characteristic(fix):
     Zdv = np.zeros(d)
     impedance_times(ZP, ZS, n, vC - v, Zdv)
     assert np.allclose(tC - t, Zdv, rtol=1e-10, atol=1e-6)
+
+
+def test_smoothness_switch_factor():
+    """switch_factor (docs/theory.md, "Smoothness switch"): 1 - chi where the reconstructed
+    jump vanishes, rising continuously to 1 where the jump reaches SWITCH_RATIO times the
+    nodal change, and 1 beyond it, also where the nodes agree but the reconstructions do not
+    (a change of 0)."""
+    from impactfv.scheme.limiters import SWITCH_RATIO, switch_factor
+
+    chi, change = 0.6, 2.0
+    assert switch_factor(chi, 0.0, change**2) == pytest.approx(1.0 - chi)
+    edge = (SWITCH_RATIO * change) ** 2
+    assert switch_factor(chi, edge, change**2) == 1.0
+    assert switch_factor(chi, 4.0 * edge, change**2) == 1.0
+    assert switch_factor(chi, 0.999 * edge, change**2) == pytest.approx(1.0, abs=1e-3)
+    assert switch_factor(chi, 0.5 * edge, change**2) == pytest.approx(1.0 - 0.5 * chi)
+    assert switch_factor(chi, 1e-20, 0.0) == 1.0

@@ -62,6 +62,12 @@ class RunSettings(_Strict):
         "gradient, 1 takes the mean of the edge's two nodes, both parts scaled by the node's "
         "limiter factor; grid-scale oscillations always get the gradient's (docs/theory.md, "
         "U-MUSCL blend)")
+    smooth_switch: Optional[float] = Field(
+        None, ge=0, le=1, description="fraction chi of the upwind dissipation (both the "
+        "momentum flux's Z [[v]] / 2 and the geometric flux's [[t]] / (2 rho c_p)) removed "
+        "on edges where the reconstructed jump is a small part of the nodal change; fronts "
+        "and grid-scale modes keep all of it. Unset: 0.6 at order 2, 0 with muscl_chi or "
+        "order 1 (docs/theory.md, Smoothness switch)")
     boundary_correction: Optional[Literal["normal", "full"]] = Field(
         None, description="the F equation's velocity on a free or loaded boundary face: the "
         "interior velocity corrected by the characteristic jump along the normal only, or in "
@@ -79,7 +85,8 @@ class RunSettings(_Strict):
     backend: Literal["cpu", "cuda"] = Field("cpu", description="where the FV kernels run: "
                                             "cpu (numba) or cuda (numba-cuda, an NVIDIA GPU)")
 
-    @field_validator("end_time", "cfl", "output_interval", "muscl_chi", "compatibility_time")
+    @field_validator("end_time", "cfl", "output_interval", "muscl_chi", "compatibility_time",
+                     "smooth_switch")
     @classmethod
     def _finite(cls, value):
         if value is not None and not math.isfinite(value):
@@ -88,7 +95,19 @@ class RunSettings(_Strict):
 
     # options of the finite-volume scheme alone: the FE baselines would ignore them
     FV_ONLY: ClassVar[tuple] = ("order", "limiter", "geometric_flux", "muscl_chi",
-                                "boundary_correction", "compatibility_time")
+                                "smooth_switch", "boundary_correction", "compatibility_time")
+
+    # chi of the smoothness switch where the case leaves it unset (order 2, no U-MUSCL blend)
+    DEFAULT_SWITCH: ClassVar[float] = 0.6
+
+    @property
+    def switch(self) -> float:
+        """The smoothness switch's chi this run uses (smooth_switch, or its default)."""
+        if self.smooth_switch is not None:
+            return float(self.smooth_switch)
+        if self.order == 1 or self.muscl_chi != 0.0:
+            return 0.0
+        return self.DEFAULT_SWITCH
 
     @model_validator(mode="after")
     def _sensible_interval(self):
@@ -110,6 +129,13 @@ class RunSettings(_Strict):
         elif self.order == 1 and self.muscl_chi != 0.0:
             raise ValueError("muscl_chi blends the order-2 reconstruction; order = 1 has "
                              "none (drop muscl_chi, or set order = 2)")
+        elif self.order == 1 and self.smooth_switch:
+            raise ValueError("smooth_switch acts on the jumps of the order-2 reconstruction; "
+                             "order = 1 has none (drop smooth_switch, or set order = 2)")
+        elif self.muscl_chi != 0.0 and self.smooth_switch:
+            raise ValueError("muscl_chi and smooth_switch are alternatives: together the "
+                             "energy of a smooth wave can rise (docs/theory.md); set one of "
+                             "them to 0")
         return self
 
 

@@ -120,6 +120,7 @@ def _make_kernels(d, m, kind):
     geometric_boundary_velocity = device(R.geometric_boundary_velocity)
     limiter_factor = device(L.limiter_factor)
     blend_weight = device(L.blend_weight)
+    switch_factor = device(L.switch_factor)
     rk_stage = device(T.rk_stage)
     heun_energy_excess = device(T.heun_energy_excess)
     RHO, CP, CS = M.RHO, M.CP, M.CS
@@ -246,7 +247,7 @@ def _make_kernels(d, m, kind):
     @cuda.jit
     def interior_fluxes(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                         use_reconstruction, stress_reconstructed, upwind_geometric, bias,
-                        force, dF):
+                        switch, force, dF):
         # the CPU's kernels._flux_edge, one thread per interior edge, scattered atomically
         e = cuda.grid(1)
         if e >= edges.shape[0]:
@@ -328,7 +329,32 @@ def _make_kernels(d, m, kind):
             w[i] = vb[i] - va[i]
             tbar[i] = 0.5 * (ta[i] + tb[i])
             tjump[i] = tb[i] - ta[i]
-        upwind_traction_area(tbar, w, zp, zs, n, inverse_m2, t)
+        zp_v = zp
+        zs_v = zs
+        if switch != 0.0:
+            # the CPU's smoothness switch (kernels._flux_edge)
+            jump2 = 0.0
+            change2 = 0.0
+            for i in range(d):
+                change = v[b, i] - v[a, i]
+                jump2 += w[i] * w[i]
+                change2 += change * change
+            scale_v = switch_factor(switch, jump2, change2)
+            zp_v = zp * scale_v
+            zs_v = zs * scale_v
+            if upwind_geometric:
+                jump2 = 0.0
+                change2 = 0.0
+                for i in range(d):
+                    for j in range(d):
+                        jump = Sb[i, j] - Sa[i, j]
+                        change = sigma[b, i, j] - sigma[a, i, j]
+                        jump2 += jump * jump
+                        change2 += change * change
+                scale_t = switch_factor(switch, jump2, change2)
+                for i in range(d):
+                    tjump[i] *= scale_t
+        upwind_traction_area(tbar, w, zp_v, zs_v, n, inverse_m2, t)
         for i in range(d):
             cuda.atomic.add(force, (a, i), t[i])
             cuda.atomic.add(force, (b, i), -t[i])
@@ -678,8 +704,8 @@ class DeviceState:
             k.interior_fluxes[_blocks(m.n_edges), THREADS](
                 A["v"], A["F"], A["sigma"], A["grad"], A["node_material"],
                 A["material_table"], A["edges"], A["C"], A["C_len"], A["half"],
-                s.order == 2, s.stress_reconstructed, s.upwind_geometric, s.bias, A["force"],
-                A["dF"])
+                s.order == 2, s.stress_reconstructed, s.upwind_geometric, s.bias, s.switch,
+                A["force"], A["dF"])
         h = len(m.bface_node)
         if h:
             k.boundary_fluxes[_blocks(h), THREADS](

@@ -46,6 +46,7 @@ boundary_state = point(R.boundary_state)
 geometric_boundary_velocity = point(R.geometric_boundary_velocity)
 limiter_factor = point(L.limiter_factor)
 blend_weight = point(L.blend_weight)
+switch_factor = point(L.switch_factor)
 rk_stage = point(T.rk_stage)
 heun_energy_excess = point(T.heun_energy_excess)
 
@@ -277,8 +278,8 @@ def _reconstruct_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bias
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-               use_reconstruction, stress_reconstructed, upwind_geometric, bias, force_a,
-               dF_a, force, dF, d, Fe, Sa, Sb, work):
+               use_reconstruction, stress_reconstructed, upwind_geometric, bias, switch,
+               force_a, dF_a, force, dF, d, Fe, Sa, Sb, work):
     """Upwind traction (seed eq. 9a) and geometric velocity (9b) of interior edge e:
     added to its first node's running sums force_a, dF_a (held by the caller while it
     walks that node's edges) and subtracted from its second node's rows of force, dF.
@@ -289,7 +290,8 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
     rho c |C_ab|), which needs neither its unit normal nor a division by its area. With
     ``use_reconstruction`` the velocities are reconstructed linearly to the edge
     midpoint from each side (grad rows 0..d-1); with ``stress_reconstructed`` the stresses as
-    well (grad rows d..: the independent components of sigma).
+    well (grad rows d..: the independent components of sigma). ``switch``: the smoothness
+    switch's chi (limiters.switch_factor; 0: off).
     """
     A, m, va, vb, w, fa, fb = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
     fbar, fjump, f, u = work[7], work[8], work[9], work[10]
@@ -331,7 +333,35 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
         w[i] = vb[i] - va[i]
         fbar[i] = 0.5 * (fa[i] + fb[i])
         fjump[i] = fb[i] - fa[i]
-    upwind_traction_area(fbar, w, zp, zs, m, inverse_m2, f)
+    if switch != 0.0:
+        # the smoothness switch (docs/theory.md) scales the momentum flux's upwind term
+        # through its impedances and the geometric flux's through the force jump
+        jump2 = 0.0
+        change2 = 0.0
+        for i in range(d):
+            change = v[b, i] - v[a, i]
+            jump2 += w[i] * w[i]
+            change2 += change * change
+        scale_v = switch_factor(switch, jump2, change2)
+        zp_v = zp * scale_v
+        zs_v = zs * scale_v
+        if upwind_geometric:
+            # the stress's jump and change in the Frobenius norm
+            jump2 = 0.0
+            change2 = 0.0
+            for i in range(d):
+                for j in range(d):
+                    jump = Sb[i, j] - Sa[i, j]
+                    change = sigma[b, i, j] - sigma[a, i, j]
+                    jump2 += jump * jump
+                    change2 += change * change
+            scale_t = switch_factor(switch, jump2, change2)
+            for i in range(d):
+                fjump[i] *= scale_t
+    else:
+        zp_v = zp
+        zs_v = zs
+    upwind_traction_area(fbar, w, zp_v, zs_v, m, inverse_m2, f)
     for i in range(d):
         force_a[i] += f[i]
         force[b, i] -= f[i]
@@ -347,7 +377,7 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                      edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
-                     bias, force, dF, d):
+                     bias, switch, force, dF, d):
     Fe = local_matrix(d)
     Sa = local_matrix(d)
     Sb = local_matrix(d)
@@ -371,8 +401,8 @@ def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len
                     dF_a[i, J] = dF[a, i, J]
             current = a
         _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-                   use_reconstruction, stress_reconstructed, upwind_geometric, bias, force_a,
-                   dF_a, force, dF, d, Fe, Sa, Sb, work)
+                   use_reconstruction, stress_reconstructed, upwind_geometric, bias, switch,
+                   force_a, dF_a, force, dF, d, Fe, Sa, Sb, work)
     if current >= 0:
         _store_node_sums(force_a, dF_a, force, dF, current, d)
 
@@ -389,7 +419,7 @@ def _store_node_sums(force_a, dF_a, force, dF, a, d):
 def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                    edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
                    prescribed_velocity, prescribed_traction, use_reconstruction,
-                   stress_reconstructed, upwind_geometric, bias, tangential_correction,
+                   stress_reconstructed, upwind_geometric, bias, switch, tangential_correction,
                    bface_contact_weight, force, dF, power, bc_force, dim):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt; into
     power[0] the power of the boundary tractions, sum over the dual boundary faces of
@@ -415,10 +445,10 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     for k in prange(nb):
         _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                          edge_offsets, use_reconstruction, stress_reconstructed,
-                         upwind_geometric, bias, force, dF, d)
+                         upwind_geometric, bias, switch, force, dF, d)
     _interior_fluxes(nb, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                      edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
-                     bias, force, dF, d)
+                     bias, switch, force, dF, d)
     Fi = local_matrix(d)
     Si = local_matrix(d)
     Z = local_matrix(d)

@@ -16,6 +16,12 @@ IDS = {"none": NONE, "barth_jespersen": BARTH_JESPERSEN, "venkatakrishnan": VENK
 # fraction of the nodal change (docs/theory.md, "U-MUSCL blend").
 SMOOTHNESS = 0.1
 
+# The smoothness switch acts where the jump between the two reconstructed states is below this
+# fraction of the nodal change (docs/theory.md, "Smoothness switch"): on a smooth field the
+# ratio is O(h^2), and modes with fewer than about ten cells per wavelength keep the whole
+# upwind dissipation (with 0.1 a bouncing block's vibrations gained energy).
+SWITCH_RATIO = 0.01
+
 
 def barth_jespersen(dmax, d):
     """phi = min(1, dmax / d): the largest factor that creates no new extremum (the TVD
@@ -56,3 +62,18 @@ def blend_weight(chi, change, r_a, r_b):
     if jump >= limit:
         return 0.0
     return chi * (1.0 - jump / limit)
+
+
+def switch_factor(chi, jump2, change2):
+    """The factor 1 - chi S of an upwind term on an edge (docs/theory.md, "Smoothness
+    switch"): S = 1 - |jump|^2 / (SWITCH_RATIO |change|)^2 where the jump between the two
+    sides' reconstructed states is below SWITCH_RATIO times the change between the nodal
+    values, 0 elsewhere (``jump2``, ``change2``: the squared norms, of the velocity vector
+    for the momentum flux's Z [[v]] / 2 and of the Cauchy stress for the geometric flux's
+    [[t]] / (2 rho c_p)). So 1 - chi on a well resolved smooth field, 1 at fronts and on
+    grid-scale modes, where the limiter or the gradients leave the jump about as large as
+    the change. It only ever removes part of a dissipation: the central parts are left as
+    they are."""
+    # without a branch: a change of 0 (a uniform state) gives a huge ratio and S = 0
+    smooth = max(0.0, 1.0 - jump2 / (SWITCH_RATIO * SWITCH_RATIO * change2 + 1e-300))
+    return 1.0 - chi * smooth

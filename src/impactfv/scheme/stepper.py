@@ -56,6 +56,7 @@ class FVStepper:
         self.upwind_geometric = case.run.geometric_flux == "upwind"
         # U-MUSCL blend of the reconstruction (kernels._flux_edge)
         self.bias = float(case.run.muscl_chi)
+        self.switch = case.run.switch
         # normal-only keeps compressed free surfaces from folding in 2D; in 3D the tangential
         # part is needed to damp the free faces' tangential modes (docs/theory.md)
         correction = case.run.boundary_correction or ("normal" if d == 2 else "full")
@@ -241,8 +242,8 @@ class FVStepper:
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
                          loads.face_velocity, loads.face_traction, self.order == 2,
                          self.stress_reconstructed, self.upwind_geometric, self.bias,
-                         self.tangential_correction, self.face_contact_weight, self.force,
-                         self.dF, self.power, self.bc_force, self.dim)
+                         self.switch, self.tangential_correction, self.face_contact_weight,
+                         self.force, self.dF, self.power, self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
         if self.relaxation_weight is not None:
