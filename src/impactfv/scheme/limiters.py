@@ -74,6 +74,7 @@ def switch_factor(chi, jump2, change2):
     grid-scale modes, where the limiter or the gradients leave the jump about as large as
     the change. It only ever removes part of a dissipation: the central parts are left as
     they are."""
-    # without a branch: a change of 0 (a uniform state) gives a huge ratio and S = 0
+    # without a branch: a change of 0 with a jump gives a huge ratio and S = 0 (with neither
+    # the term is zero anyway)
     smooth = max(0.0, 1.0 - jump2 / (SWITCH_RATIO * SWITCH_RATIO * change2 + 1e-300))
     return 1.0 - chi * smooth
