@@ -247,7 +247,7 @@ def _make_kernels(d, m, kind):
     @cuda.jit
     def interior_fluxes(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                         use_reconstruction, stress_reconstructed, upwind_geometric, bias,
-                        switch, force, dF):
+                        switch, contact_state, force, dF):
         # the CPU's kernels._flux_edge, one thread per interior edge, scattered atomically
         e = cuda.grid(1)
         if e >= edges.shape[0]:
@@ -331,7 +331,7 @@ def _make_kernels(d, m, kind):
             tjump[i] = tb[i] - ta[i]
         zp_v = zp
         zs_v = zs
-        if switch != 0.0:
+        if switch != 0.0 and contact_state[a] == 0 and contact_state[b] == 0:
             # the CPU's smoothness switch (kernels._flux_edge)
             jump2 = 0.0
             change2 = 0.0
@@ -705,7 +705,7 @@ class DeviceState:
                 A["v"], A["F"], A["sigma"], A["grad"], A["node_material"],
                 A["material_table"], A["edges"], A["C"], A["C_len"], A["half"],
                 s.order == 2, s.stress_reconstructed, s.upwind_geometric, s.bias, s.switch,
-                A["force"], A["dF"])
+                A["contact_state"], A["force"], A["dF"])
         h = len(m.bface_node)
         if h:
             k.boundary_fluxes[_blocks(h), THREADS](
@@ -868,6 +868,8 @@ class HostContact:
         self.system.stage(s.x, s.v, s.F, s.sigma, s.grad, s.order == 2, s.dt, stage,
                           stage_time)
         self._up([self.weights], self.faces, self.faces_dev)
+        # the stage's contact states (the smoothness switch leaves the contact zone's edges)
+        self._up(self.contact_out[:1], self.nodes, self.nodes_dev)
         if self.grad:
             self._up([self.grad], self.nodes, self.nodes_dev)
 

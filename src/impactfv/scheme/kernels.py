@@ -279,7 +279,7 @@ def _reconstruct_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bias
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                use_reconstruction, stress_reconstructed, upwind_geometric, bias, switch,
-               force_a, dF_a, force, dF, d, Fe, Sa, Sb, work):
+               contact_state, force_a, dF_a, force, dF, d, Fe, Sa, Sb, work):
     """Upwind traction (seed eq. 9a) and geometric velocity (9b) of interior edge e:
     added to its first node's running sums force_a, dF_a (held by the caller while it
     walks that node's edges) and subtracted from its second node's rows of force, dF.
@@ -291,7 +291,8 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
     ``use_reconstruction`` the velocities are reconstructed linearly to the edge
     midpoint from each side (grad rows 0..d-1); with ``stress_reconstructed`` the stresses as
     well (grad rows d..: the independent components of sigma). ``switch``: the smoothness
-    switch's chi (limiters.switch_factor; 0: off).
+    switch's chi (limiters.switch_factor; 0: off), not applied on the edges of nodes in
+    contact (contact_state != 0), which keep the whole upwind dissipation.
     """
     A, m, va, vb, w, fa, fb = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
     fbar, fjump, f, u = work[7], work[8], work[9], work[10]
@@ -333,7 +334,7 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
         w[i] = vb[i] - va[i]
         fbar[i] = 0.5 * (fa[i] + fb[i])
         fjump[i] = fb[i] - fa[i]
-    if switch != 0.0:
+    if switch != 0.0 and contact_state[a] == 0 and contact_state[b] == 0:
         # the smoothness switch (docs/theory.md) scales the momentum flux's upwind term
         # through its impedances and the geometric flux's through the force jump
         jump2 = 0.0
@@ -377,7 +378,7 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
 def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                      edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
-                     bias, switch, force, dF, d):
+                     bias, switch, contact_state, force, dF, d):
     Fe = local_matrix(d)
     Sa = local_matrix(d)
     Sb = local_matrix(d)
@@ -402,7 +403,7 @@ def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len
             current = a
         _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                    use_reconstruction, stress_reconstructed, upwind_geometric, bias, switch,
-                   force_a, dF_a, force, dF, d, Fe, Sa, Sb, work)
+                   contact_state, force_a, dF_a, force, dF, d, Fe, Sa, Sb, work)
     if current >= 0:
         _store_node_sums(force_a, dF_a, force, dF, current, d)
 
@@ -419,7 +420,8 @@ def _store_node_sums(force_a, dF_a, force, dF, a, d):
 def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                    edge_offsets, bface_node, bface_others, bface_C, bface_bc, closure, bc_fixed,
                    prescribed_velocity, prescribed_traction, use_reconstruction,
-                   stress_reconstructed, upwind_geometric, bias, switch, tangential_correction,
+                   stress_reconstructed, upwind_geometric, bias, switch, contact_state,
+                   tangential_correction,
                    bface_contact_weight, force, dF, power, bc_force, dim):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt; into
     power[0] the power of the boundary tractions, sum over the dual boundary faces of
@@ -445,10 +447,10 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
     for k in prange(nb):
         _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                          edge_offsets, use_reconstruction, stress_reconstructed,
-                         upwind_geometric, bias, switch, force, dF, d)
+                         upwind_geometric, bias, switch, contact_state, force, dF, d)
     _interior_fluxes(nb, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
                      edge_offsets, use_reconstruction, stress_reconstructed, upwind_geometric,
-                     bias, switch, force, dF, d)
+                     bias, switch, contact_state, force, dF, d)
     Fi = local_matrix(d)
     Si = local_matrix(d)
     Z = local_matrix(d)

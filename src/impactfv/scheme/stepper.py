@@ -242,8 +242,9 @@ class FVStepper:
                          m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
                          loads.face_velocity, loads.face_traction, self.order == 2,
                          self.stress_reconstructed, self.upwind_geometric, self.bias,
-                         self.switch, self.tangential_correction, self.face_contact_weight,
-                         self.force, self.dF, self.power, self.bc_force, self.dim)
+                         self.switch, self.contact_state, self.tangential_correction,
+                         self.face_contact_weight, self.force, self.dF, self.power,
+                         self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
         if self.relaxation_weight is not None:
