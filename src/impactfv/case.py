@@ -62,12 +62,12 @@ class RunSettings(_Strict):
         "gradient, 1 takes the mean of the edge's two nodes, both parts scaled by the node's "
         "limiter factor; grid-scale oscillations always get the gradient's (docs/theory.md, "
         "U-MUSCL blend)")
-    smooth_switch: Optional[float] = Field(
-        None, ge=0, le=1, description="fraction chi of the upwind dissipation (both the "
+    smooth_switch: float = Field(
+        0.0, ge=0, le=1, description="fraction chi of the upwind dissipation (both the "
         "momentum flux's Z [[v]] / 2 and the geometric flux's [[t]] / (2 rho c_p)) removed "
-        "on edges where the reconstructed jump is a small part of the nodal change; fronts "
-        "and grid-scale modes keep all of it. Unset: 0.6 at order 2, 0 with muscl_chi or "
-        "order 1 (docs/theory.md, Smoothness switch)")
+        "on edges where the reconstructed jump is a small part of the nodal change; fronts, "
+        "grid-scale modes and contact keep all of it. 0: off (default); 0.6 takes 40% of the "
+        "energy the plain terms take from a smooth wave (docs/theory.md, Smoothness switch)")
     boundary_correction: Optional[Literal["normal", "full"]] = Field(
         None, description="the F equation's velocity on a free or loaded boundary face: the "
         "interior velocity corrected by the characteristic jump along the normal only, or in "
@@ -97,17 +97,10 @@ class RunSettings(_Strict):
     FV_ONLY: ClassVar[tuple] = ("order", "limiter", "geometric_flux", "muscl_chi",
                                 "smooth_switch", "boundary_correction", "compatibility_time")
 
-    # chi of the smoothness switch where the case leaves it unset (order 2, no U-MUSCL blend)
-    DEFAULT_SWITCH: ClassVar[float] = 0.6
-
     @property
     def switch(self) -> float:
-        """The smoothness switch's chi this run uses (smooth_switch, or its default)."""
-        if self.smooth_switch is not None:
-            return float(self.smooth_switch)
-        if self.order == 1 or self.muscl_chi != 0.0:
-            return 0.0
-        return self.DEFAULT_SWITCH
+        """The smoothness switch's chi this run uses."""
+        return float(self.smooth_switch)
 
     @model_validator(mode="after")
     def _sensible_interval(self):
