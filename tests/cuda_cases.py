@@ -93,6 +93,8 @@ CASES = {
 }
 CASES["2d_order2_bj_umuscl"]["run"]["muscl_chi"] = 0.6
 CASES["3d_order2_venkatakrishnan"]["run"]["output_interval"] = 2.5e-8
+# the smoothness switch (an option) on the CUDA copy of the flux as well
+CASES["3d_order2_venkatakrishnan"]["run"]["smooth_switch"] = 0.6
 for name in ("2d_order2_bj_umuscl", "3d_order2_venkatakrishnan"):
     CASES[name]["run"]["compatibility_time"] = 30.0
 
