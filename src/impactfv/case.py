@@ -97,11 +97,6 @@ class RunSettings(_Strict):
     FV_ONLY: ClassVar[tuple] = ("order", "limiter", "geometric_flux", "muscl_chi",
                                 "smooth_switch", "boundary_correction", "compatibility_time")
 
-    @property
-    def switch(self) -> float:
-        """The smoothness switch's chi this run uses."""
-        return float(self.smooth_switch)
-
     @model_validator(mode="after")
     def _sensible_interval(self):
         if self.output_interval is not None and self.output_interval < 1e-9 * self.end_time:

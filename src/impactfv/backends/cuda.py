@@ -120,7 +120,7 @@ def _make_kernels(d, m, kind):
     geometric_boundary_velocity = device(R.geometric_boundary_velocity)
     limiter_factor = device(L.limiter_factor)
     blend_weight = device(L.blend_weight)
-    switch_factor = device(L.switch_factor)
+    switch_scales = device(L.switch_scales)
     rk_stage = device(T.rk_stage)
     heun_energy_excess = device(T.heun_energy_excess)
     RHO, CP, CS = M.RHO, M.CP, M.CS
@@ -333,27 +333,12 @@ def _make_kernels(d, m, kind):
         zs_v = zs
         if switch != 0.0 and contact_state[a] == 0 and contact_state[b] == 0:
             # the CPU's smoothness switch (kernels._flux_edge)
-            jump2 = 0.0
-            change2 = 0.0
-            for i in range(d):
-                change = v[b, i] - v[a, i]
-                jump2 += w[i] * w[i]
-                change2 += change * change
-            scale_v = switch_factor(switch, jump2, change2)
+            scale_v, scale_t = switch_scales(switch, v, sigma, a, b, w, Sa, Sb,
+                                             upwind_geometric)
             zp_v = zp * scale_v
             zs_v = zs * scale_v
-            if upwind_geometric:
-                jump2 = 0.0
-                change2 = 0.0
-                for i in range(d):
-                    for j in range(d):
-                        jump = Sb[i, j] - Sa[i, j]
-                        change = sigma[b, i, j] - sigma[a, i, j]
-                        jump2 += jump * jump
-                        change2 += change * change
-                scale_t = switch_factor(switch, jump2, change2)
-                for i in range(d):
-                    tjump[i] *= scale_t
+            for i in range(d):
+                tjump[i] *= scale_t
         upwind_traction_area(tbar, w, zp_v, zs_v, n, inverse_m2, t)
         for i in range(d):
             cuda.atomic.add(force, (a, i), t[i])

@@ -46,7 +46,7 @@ boundary_state = point(R.boundary_state)
 geometric_boundary_velocity = point(R.geometric_boundary_velocity)
 limiter_factor = point(L.limiter_factor)
 blend_weight = point(L.blend_weight)
-switch_factor = point(L.switch_factor)
+switch_scales = point(L.switch_scales)
 rk_stage = point(T.rk_stage)
 heun_energy_excess = point(T.heun_energy_excess)
 
@@ -291,7 +291,7 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
     ``use_reconstruction`` the velocities are reconstructed linearly to the edge
     midpoint from each side (grad rows 0..d-1); with ``stress_reconstructed`` the stresses as
     well (grad rows d..: the independent components of sigma). ``switch``: the smoothness
-    switch's chi (limiters.switch_factor; 0: off), not applied on the edges of nodes in
+    switch's chi (limiters.switch_scales; 0: off), not applied on the edges of nodes in
     contact (contact_state != 0), which keep the whole upwind dissipation.
     """
     A, m, va, vb, w, fa, fb = work[0], work[1], work[2], work[3], work[4], work[5], work[6]
@@ -337,28 +337,11 @@ def _flux_edge(e, v, F, sigma, grad, node_material, table, edges, C, C_len, half
     if switch != 0.0 and contact_state[a] == 0 and contact_state[b] == 0:
         # the smoothness switch (docs/theory.md) scales the momentum flux's upwind term
         # through its impedances and the geometric flux's through the force jump
-        jump2 = 0.0
-        change2 = 0.0
-        for i in range(d):
-            change = v[b, i] - v[a, i]
-            jump2 += w[i] * w[i]
-            change2 += change * change
-        scale_v = switch_factor(switch, jump2, change2)
+        scale_v, scale_t = switch_scales(switch, v, sigma, a, b, w, Sa, Sb, upwind_geometric)
         zp_v = zp * scale_v
         zs_v = zs * scale_v
-        if upwind_geometric:
-            # the stress's jump and change in the Frobenius norm
-            jump2 = 0.0
-            change2 = 0.0
-            for i in range(d):
-                for j in range(d):
-                    jump = Sb[i, j] - Sa[i, j]
-                    change = sigma[b, i, j] - sigma[a, i, j]
-                    jump2 += jump * jump
-                    change2 += change * change
-            scale_t = switch_factor(switch, jump2, change2)
-            for i in range(d):
-                fjump[i] *= scale_t
+        for i in range(d):
+            fjump[i] *= scale_t
     else:
         zp_v = zp
         zs_v = zs

@@ -78,3 +78,30 @@ def switch_factor(chi, jump2, change2):
     # the term is zero anyway)
     smooth = max(0.0, 1.0 - jump2 / (SWITCH_RATIO * SWITCH_RATIO * change2 + 1e-300))
     return 1.0 - chi * smooth
+
+
+def switch_scales(chi, v, sigma, a, b, dv, Sa, Sb, geometric):
+    """The smoothness switch's factors (momentum, geometric) on edge ab (docs/theory.md,
+    "Smoothness switch"): switch_factor of the reconstructed velocity jump dv against
+    v_b - v_a for the momentum flux's Z [[v]] / 2, and (``geometric``: the upwind geometric
+    flux; 1 otherwise) of the reconstructed stresses' jump Sb - Sa against
+    sigma_b - sigma_a, in the Frobenius norm, for its [[t]] / (2 rho c_p)."""
+    d = dv.shape[0]
+    jump2 = 0.0
+    change2 = 0.0
+    for i in range(d):
+        change = v[b, i] - v[a, i]
+        jump2 += dv[i] * dv[i]
+        change2 += change * change
+    momentum = switch_factor(chi, jump2, change2)
+    if not geometric:
+        return momentum, 1.0
+    jump2 = 0.0
+    change2 = 0.0
+    for i in range(d):
+        for j in range(d):
+            jump = Sb[i, j] - Sa[i, j]
+            change = sigma[b, i, j] - sigma[a, i, j]
+            jump2 += jump * jump
+            change2 += change * change
+    return momentum, switch_factor(chi, jump2, change2)

@@ -56,7 +56,7 @@ class FVStepper:
         self.upwind_geometric = case.run.geometric_flux == "upwind"
         # U-MUSCL blend of the reconstruction (kernels._flux_edge)
         self.bias = float(case.run.muscl_chi)
-        self.switch = case.run.switch
+        self.switch = float(case.run.smooth_switch)
         # normal-only keeps compressed free surfaces from folding in 2D; in 3D the tangential
         # part is needed to damp the free faces' tangential modes (docs/theory.md)
         correction = case.run.boundary_correction or ("normal" if d == 2 else "full")
