@@ -20,8 +20,8 @@ from ..geometry.surfaces import surface_facets
 from ..mesh.edges import facet_index
 from . import riemann_step as RS
 from .overlap import boundary_straightness, closing_fractions, contact_pieces
-from .search import (find_partners, forget_partners, near_each_other, surface_normals,
-                     wall_gaps)
+from .search import (BESIDE_IS_OPEN, BESIDE_MEASURED, BESIDE_OFFSET, find_partners,
+                     forget_partners, near_each_other, surface_normals, wall_gaps)
 
 
 @dataclass
@@ -126,6 +126,12 @@ class ContactSystem:
         self.length_sum = np.zeros(n)
         self.motion_sum = np.zeros((n, d))
         self.traction_sum = np.zeros(n)
+        # corners that follow the partner's surface in this stage (riemann_step.mark_followers)
+        self.follower = np.zeros(n, np.bool_)
+        self.follow_nodes = np.zeros((n, d), np.int64)
+        self.follow_w = np.zeros((n, d))
+        self.follow_normal = np.zeros((n, d))
+        self.follow_phi = np.zeros(n)
         self._pieces(4 * len(self.faces) + 16)
         # the slave nodes and master facets of a pass that are near each other
         self.slave_near = np.zeros(n, np.int64)
@@ -196,6 +202,7 @@ class ContactSystem:
         if not self._finite(x):
             return
         self._geometry(x)
+        self.follower[self.surface_nodes] = False
         for pair in self.pairs:
             fsum = pair.fsum[stage_index]
             fsum[:] = 0.0
@@ -205,6 +212,11 @@ class ContactSystem:
         RS.settle_nodes(self.surface_nodes, self.faces, v, self.length_sum, self.motion_sum,
                         self.traction_sum, self.face_weight, self.face_velocity, self.xdot,
                         self.tstar_n)
+        # corners pressing into a face move with it (docs/contact.md, step 6)
+        RS.follow_partner_surfaces(self.surface_nodes, self.follower, self.follow_nodes,
+                                   self.follow_w, self.follow_normal, self.follow_phi,
+                                   self.state, v, self.xdot, self.face_start, self.face_list,
+                                   self.face_weight, self.face_velocity)
         if reconstructed:
             RS.first_order_in_contact(self.surface_nodes, self.state, self.flat, grad)
 
@@ -266,13 +278,17 @@ class ContactSystem:
             bins = build_bins(x, segs, self.pad)
             g = find_partners(x, near, self.normal_out, segs, *bins, self.pad,
                               self.partner, self.partner_w, self.partner_dist, self.gap,
-                              self.normal, *skip, disc.dim == 3 or pair.self_contact)
+                              self.normal, *skip, self._beside(pair, apply))
             gmin = min(gmin, g)
             if not apply:
                 continue
             if stage_index == 0:
                 closing_fractions(x, v, slave_nodes, self.partner, self.partner_w, self.gap,
                                   self.normal, segs, pair.memory, dt, pair.phi)
+            if not pair.self_contact:
+                RS.mark_followers(near, self.partner, self.partner_w, self.normal, pair.phi,
+                                  segs, self.straightness, self.follower, self.follow_nodes,
+                                  self.follow_w, self.follow_normal, self.follow_phi)
             count = self._contact_pieces(x, near, segs, bins, skip, pair.phi)
             RS.piece_states(disc.X, x, F, v, sigma, disc.node_material,
                             disc.material_table, disc.bface_C, disc.bface_others, segs,
@@ -283,6 +299,12 @@ class ContactSystem:
                             self.face_weight, self.face_velocity, pair.state,
                             self.length_sum, self.motion_sum, self.traction_sum, self.dim)
         return gmin
+
+    def _beside(self, pair, stage):
+        """What the gap of a node beside its partner facet is (search.find_partners)."""
+        if self.disc.dim == 3 or pair.self_contact:
+            return BESIDE_IS_OPEN
+        return BESIDE_OFFSET if stage else BESIDE_MEASURED
 
     def _contact_pieces(self, x, slave_nodes, segs, bins, skip, phi):
         disc = self.disc

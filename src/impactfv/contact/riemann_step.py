@@ -364,3 +364,62 @@ def apply_contact(nodes, faces, bface_node, bface_C, face_weight, face_velocity,
                 u = w * fixed_value[a, i]
             for J in range(d):
                 dF[a, i, J] += u * bface_C[face, J]
+
+
+@njit(cache=True, error_model="numpy")
+def mark_followers(near, partner, partner_w, normal, phi, segs, straightness, follower,
+                   follow_nodes, follow_w, follow_normal, follow_phi):
+    """Corners that follow the partner's surface: a slave node at a corner of its body
+    (``straightness`` 0: a right or sharper corner) whose partner facet is straight at both
+    ends (both nodes' straightness above 0). Records the facet's nodes, the weights of the
+    node's projection on it, the contact normal and the node's fraction of the step in
+    contact (docs/contact.md, "Corners follow the face they press into")."""
+    d = normal.shape[1]
+    for i in range(near.shape[0]):
+        a = near[i]
+        s = partner[a]
+        if s < 0 or straightness[a] > 0.0 or phi[a] == 0.0:
+            continue
+        flat = True
+        for m in range(d):
+            if straightness[segs[s, m]] == 0.0:
+                flat = False
+        if not flat:
+            continue
+        follower[a] = True
+        follow_phi[a] = phi[a]
+        for m in range(d):
+            follow_nodes[a, m] = segs[s, m]
+            follow_w[a, m] = partner_w[a, m]
+            follow_normal[a, m] = normal[a, m]
+
+
+@njit(cache=True, error_model="numpy")
+def follow_partner_surfaces(nodes, follower, follow_nodes, follow_w, follow_normal,
+                            follow_phi, state, v, xdot, face_start, face_list, face_weight,
+                            face_velocity):
+    """After settle_nodes: a follower corner in contact moves along the contact normal with
+    the partner facet's point under it (the facet's nodes' motion, interpolated at the
+    corner's projection) instead of its own Riemann velocity, for its fraction of the step;
+    its contact faces carry the same change in the F equation, so that F keeps following
+    the positions."""
+    d = v.shape[1]
+    for i in range(nodes.shape[0]):
+        a = nodes[i]
+        if not follower[a] or state[a] == OPEN:
+            continue
+        delta = 0.0
+        for k in range(d):
+            target = 0.0
+            for m in range(d):
+                b = follow_nodes[a, m]
+                target += follow_w[a, m] * (xdot[b, k] if state[b] != OPEN else v[b, k])
+            delta += follow_normal[a, k] * (target - xdot[a, k])
+        delta *= follow_phi[a]
+        for k in range(d):
+            xdot[a, k] += delta * follow_normal[a, k]
+        for j in range(face_start[a], face_start[a + 1]):
+            f = face_list[j]
+            w = face_weight[f]
+            for k in range(d):
+                face_velocity[f, k] += w * delta * follow_normal[a, k]

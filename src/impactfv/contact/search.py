@@ -88,24 +88,35 @@ def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w, ski
     return best, best_d
 
 
+#: what the gap of a node beside its partner facet is (find_partners)
+BESIDE_OFFSET, BESIDE_IS_OPEN, BESIDE_MEASURED = 0, 1, 2
+
+
 @njit(cache=True, error_model="numpy")
 def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, partner,
                   partner_w, partner_dist, gap, normal, skip_start, skip_nodes,
-                  beside_is_open):
+                  beside):
     """For every slave node: its partner facet (-1 if none within reach), the barycentric
     weights partner_w of the closest point on it, the distance, the gap and the contact
     normal n from the node into the partner (minus the facet's outward unit normal).
     Returns the smallest gap.
 
     The gap is g = (x_closest - x_a) . n where the closest point is the node's projection on
-    the facet's plane. With ``beside_is_open`` (3D, and self-contact in 2D), where the
-    closest point lies on the facet's end, edge or corner instead (the node is beside the
-    facet), the gap is the distance: the node is outside the facet's body even when it lies
-    behind the facet's plane, as a node on the side of one bar next to the bulging edge of
-    the other does, or a node on the top of a slit next to its side. Between two bodies in
-    2D the normal offset is kept: there a node beside the partner's corner still carries
-    the part of its face that overlaps the partner (a small block's corner pressing into a
-    face sank twice as deep with the distance, docs/contact.md)."""
+    the facet's plane. Where the closest point lies on the facet's end, edge or corner
+    instead (the node is beside the facet), ``beside`` says what the gap is:
+    - BESIDE_IS_OPEN (3D, and self-contact in 2D): the distance. The node is outside the
+      facet's body even when it lies behind the facet's plane, as a node on the side of one
+      bar next to the bulging edge of the other does, or a node on the top of a slit next
+      to its side.
+    - BESIDE_OFFSET (between two bodies in 2D, in the Runge-Kutta stages): the normal
+      offset. There a node beside the partner's corner still carries the part of its face
+      that overlaps the partner (a small block's corner pressing into a face sank twice as
+      deep with the distance, docs/contact.md).
+    - BESIDE_MEASURED (between two bodies in 2D, the gap reported after each step): the
+      distance where the node lies on the outer side of the facet's end node (its outward
+      normal ``nrm``): beside a convex corner of the partner it is outside the partner,
+      however far behind the facet's line it lies; beside a reentrant corner the normal
+      offset."""
     d = x.shape[1]
     gmin = np.inf
     S = local_vector(d)
@@ -127,9 +138,18 @@ def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, pa
                 proj += w[m] * (x[facets[s, m], k] - x[p, k])
             normal[a, k] = -S[k] / L
             g += (proj - x[a, k]) * normal[a, k]
-        if beside_is_open and dist > abs(g) * (1.0 + 1e-9) + 1e-12 * (
+        if beside != BESIDE_OFFSET and dist > abs(g) * (1.0 + 1e-9) + 1e-12 * (
                 math.sqrt(L) if d == 3 else L):
-            g = dist
+            if beside == BESIDE_IS_OPEN:
+                g = dist
+            else:
+                # 2D: the closest point is the facet's end node with the larger weight
+                e = facets[s, 0] if w[0] >= w[1] else facets[s, 1]
+                side = 0.0
+                for k in range(d):
+                    side += (x[a, k] - x[e, k]) * nrm[e, k]
+                if side > 0.0:
+                    g = dist
         for m in range(d):
             partner_w[a, m] = w[m]
         partner_dist[a] = dist
