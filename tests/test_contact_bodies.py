@@ -114,7 +114,8 @@ def test_small_block_on_a_larger_block(model):
     smaller block's face, is 0.54% (slip) and 0.30% (stick) of h inside it, below the 1% of
     h (the corner itself sank 0.93% and 0.48% before it followed the face, 2.5% and 2.1%
     with the plain mean of the two normals). At h = 0.1 mm that node is 1.7% of h inside
-    (a known shortfall, docs/contact.md "Known limitations")."""
+    (a known shortfall of the default, docs/contact.md "Known limitations"; the option
+    compatibility_time holds it, the next test)."""
     small = {"name": "small", "material": COPPER["name"], "velocity": [0.0, -50.0],
              "mesh": rect([-1e-3, 0.1e-3], [2e-3, 2e-3])}
     big = {"name": "big", "material": COPPER["name"], "velocity": [0.0, 0.0],
@@ -127,6 +128,31 @@ def test_small_block_on_a_larger_block(model):
     p0 = rho * 2e-3 * 2e-3 * np.array([0.0, -50.0])
     assert ps + pb == pytest.approx(p0, abs=1e-10 * np.abs(p0).max())
     assert ps[1] > 0.0 > pb[1]                                  # the small block bounced
+
+
+@pytest.mark.parametrize("model", ["slip", "stick"])
+def test_small_block_at_h_0_1_mm_with_compatibility_relaxation(model):
+    """The same at h = 0.1 mm. The default scheme lets a node of the
+    larger block's zigzagging face sink 1.73% (slip) and 1.68% (stick) of h into the smaller
+    block; with F's grid-scale mismatch with the positions relaxed over 30 p-wave transit
+    times the face stays smooth enough: measured 0.78% and 0.46% of h, the energy never
+    rising (docs/contact.md, "Known limitations")."""
+    global H
+    coarse, H = H, 0.1e-3
+    try:
+        small = {"name": "small", "material": COPPER["name"], "velocity": [0.0, -50.0],
+                 "mesh": rect([-1e-3, 0.1e-3], [2e-3, 2e-3])}
+        big = {"name": "big", "material": COPPER["name"], "velocity": [0.0, 0.0],
+               "mesh": rect([-4e-3, -4e-3], [8e-3, 4e-3])}
+        result = run_case([small, big], [COPPER], {"bodies": ["small", "big"], "model": model},
+                          30e-6, compatibility_time=30.0)
+        check_common(result)
+    finally:
+        H = coarse
+    rho = COPPER["density"]
+    ps, pb = (momentum(result.bodies[k], rho) for k in ("small", "big"))
+    p0 = rho * 2e-3 * 2e-3 * np.array([0.0, -50.0])
+    assert ps + pb == pytest.approx(p0, abs=1e-10 * np.abs(p0).max())
 
 
 @pytest.mark.parametrize("model", ["slip", "stick"])
