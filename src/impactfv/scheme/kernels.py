@@ -515,15 +515,23 @@ def relax_towards_positions(F, G, weight, owned, node_edge_start, node_neighbour
     w_ab (P_a - P_b) : (D_a - D_b) vanishes for a uniform stress."""
     d = len(dim)
     for a in prange(owned):
-        start, stop = node_edge_start[a], node_edge_start[a + 1]
+        # sum_b w_ab (D_a - D_b) = (sum_b w_ab) D_a - sum_b w_ab D_b: one pass over the
+        # neighbours, each read once
+        weighted = local_matrix(d)
         for i in range(d):
             for J in range(d):
-                Da = F[a, i, J] - G[a, i, J]
-                change = 0.0
-                for k in range(start, stop):
-                    b = node_neighbour[k]
-                    change += weight[k] * (Da - F[b, i, J] + G[b, i, J])
-                dF[a, i, J] -= change
+                weighted[i, J] = 0.0
+        total = 0.0
+        for k in range(node_edge_start[a], node_edge_start[a + 1]):
+            b = node_neighbour[k]
+            w = weight[k]
+            total += w
+            for i in range(d):
+                for J in range(d):
+                    weighted[i, J] += w * (F[b, i, J] - G[b, i, J])
+        for i in range(d):
+            for J in range(d):
+                dF[a, i, J] -= total * (F[a, i, J] - G[a, i, J]) - weighted[i, J]
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
