@@ -47,14 +47,15 @@ def test_reaction_and_applied_load_change_the_momentum_exactly():
 
 
 def test_energy_balance_of_the_pulled_bar_never_rises_and_converges():
-    """kinetic + strain - external work starts at 0 and falls, by what the scheme dissipates:
-    4.2e-5 of the work with 50 cells, 1.2e-5 with 100 (second order). It never rises above
-    its running minimum by more than the time-integration error of the work (measured
+    """kinetic + strain - external work starts at 0 and falls, by what the upwind fluxes
+    dissipate: 4.2e-5 of the work with 50 cells, 1.2e-5 with 100 (second order). Without the
+    compatibility relaxation (whose power is not of one sign, the next test) it never rises
+    above its running minimum by more than the time-integration error of the work (measured
     8e-10 and 0 of the work). The dissipated-energy column (the power in minus the rate of
     the energy the semi-discrete rates give, integrated like the work) never decreases."""
     lost = []
     for n in (50, 100):
-        h = run(load_case(pulled_bar(divisions=n))).history
+        h = run(load_case(pulled_bar(divisions=n, compatibility_time=0.0))).history
         Wk, D = h["external_work"], h["dissipated_energy"]
         held = h["kinetic_energy"] + h["strain_energy"] - Wk
         assert held[0] == 0.0
@@ -113,14 +114,16 @@ def test_energy_balance_closes_to_the_time_integration_error():
 
 def test_energy_balance_of_a_linear_elastic_bar_closes_to_round_off():
     """For a linear elastic material the energy is quadratic in the state and Heun's energy
-    identity is exact, so kinetic + strain - work + dissipated - integration_energy holds to
-    round-off (measured 1e-15 of the work); dropping any of its terms (the support's work at
-    the held end, the traction's work, the dissipation) would show."""
+    identity is exact (for any rates, the compatibility relaxation's included), so kinetic +
+    strain - work + dissipated - integration_energy holds to round-off (measured 1.2e-12 of
+    the work, 4.9e-13 without the relaxation; the dissipated energy is 2.3e-4 of it);
+    dropping any of its terms (the support's work at the held end, the traction's work, the
+    dissipation) would show."""
     case = pulled_bar(divisions=50, end_time=2e-4)
     case["material"][0] = dict(case["material"][0], model="linear_elastic")
     h = run(load_case(case)).history
     B, Wk = h["energy_balance"], h["external_work"]
-    assert np.abs(B - B[0]).max() < 1e-12 * Wk[-1]
+    assert np.abs(B - B[0]).max() < 1e-11 * Wk[-1]
     assert h["integration_energy"][-1] > 1e-7 * Wk[-1]
 
 

@@ -57,8 +57,11 @@ def test_free_body_conserves_momentum_and_never_gains_energy(block, geometric_fl
 
 
 def test_interior_F_stays_the_gradient_of_positions(block):
-    """With the central geometric flux F_a = GG(x)_a at every interior node."""
+    """With the central geometric flux F_a = GG(x)_a at every interior node (without the
+    compatibility relaxation, which pulls the interior nodes' F towards the boundary nodes'
+    mismatch, where the Green-Gauss gradient is first order)."""
     case = block(divisions=(16, 8), end_time=1e-5, geometric_flux="central",
+                 compatibility_time=0.0,
                  velocity=["30*sin(400*x)", "20*cos(900*y) - 3000*x"])
     solver = FVStepper(load_case(case))
     for _ in range(30):
@@ -76,18 +79,23 @@ def test_interior_F_stays_the_gradient_of_positions(block):
 @pytest.mark.parametrize("limiter", ["barth_jespersen", "venkatakrishnan"])
 def test_limiter_removes_the_overshoot_at_a_velocity_jump(block, limiter):
     """Before the waves reach the ends, the limited profile stays within the initial range
-    and overshoots less than the unlimited one."""
-    def peak(lim):
-        case = block(divisions=(60, 4), end_time=2e-6, limiter=lim,
+    and overshoots less than the unlimited one. The limiter's bound holds for the fluxes
+    alone; the default compatibility relaxation (docs/theory.md) changes F outside it and
+    lets a trace through (measured with Barth-Jespersen: 1.4e-6 m/s of the 10 m/s jump
+    without it, 4.0e-3 m/s with it; Venkatakrishnan 0.066 m/s with it; unlimited 0.47 m/s)."""
+    def peak(lim, **run_settings):
+        case = block(divisions=(60, 4), end_time=2e-6, limiter=lim, **run_settings,
                      velocity=["10*heaviside(0.005 - x)", "0"],
                      boundary=[{"region": "ymin", "velocity": {"y": 0.0}},
                                {"region": "ymax", "velocity": {"y": 0.0}}])
         vx = run(load_case(case)).bodies["block"]["velocity"][:, 0]
         return max(vx.max() - 10.0, -vx.min())
     limited, unlimited = peak(limiter), peak("none")
+    fluxes_alone = peak(limiter, compatibility_time=0.0)
     # Barth-Jespersen keeps every reconstructed value within its neighbours' range;
     # Venkatakrishnan's smooth limiter lets a small overshoot through by design
-    assert limited < (1e-4 if limiter == "barth_jespersen" else 1e-2) * 10.0
+    assert fluxes_alone < (1e-4 if limiter == "barth_jespersen" else 1e-2) * 10.0
+    assert limited < (1e-3 if limiter == "barth_jespersen" else 1e-2) * 10.0
     assert limited < unlimited
 
 

@@ -73,10 +73,11 @@ class RunSettings(_Strict):
         "interior velocity corrected by the characteristic jump along the normal only, or in "
         "every direction; unset: normal in 2D, full in 3D (docs/theory.md, Boundaries)")
     compatibility_time: float = Field(
-        0.0, ge=0, description="relaxation time of F towards the Green-Gauss gradient of the "
-        "nodal positions, in p-wave transit times h / c_p of each node's shortest edge; 0: "
-        "off. Damps the incompatible rotations of F that the upwind geometric flux makes "
-        "grow under compression (docs/theory.md, Compatibility relaxation)")
+        30.0, ge=0, description="relaxation time of the grid-scale part of F's mismatch with "
+        "the Green-Gauss gradient of the nodal positions, in p-wave transit times h / c_p of "
+        "each node's shortest edge; 0: off. Damps the incompatible rotations of F that the "
+        "upwind geometric flux makes grow under compression (docs/theory.md, Compatibility "
+        "relaxation)")
     max_steps: Optional[int] = Field(None, gt=0, description="cap on the number of steps; "
                                      "unset: 10,000,000, and a run estimated to need more is "
                                      "refused before it starts")
