@@ -288,6 +288,32 @@ def test_compatibility_relaxation_does_no_work_under_a_uniform_stress():
     assert np.abs(st.dF).max() < 1e-12 * change
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_the_gradient_pass_gives_the_relaxation_the_mismatch_of_f_and_the_positions(dim):
+    """At order 2 the gradient pass of the reconstructed fields also writes the relaxation's
+    mismatch D = F - G(x) (kernels.limited_gradient, with_positions). For positions that are
+    a linear map of the reference ones, x = A X + b, the Green-Gauss gradient is A exactly, so
+    D = F - A at every node, boundary nodes included; for any positions D equals what the
+    positions-only pass (order 1) gives."""
+    st, F0, sigma = prestressed_block("upwind", 0.9, 30.0, dim=dim)
+    m = st.disc
+    rng = np.random.default_rng(7)
+    A = np.eye(dim) + 0.1 * rng.standard_normal((dim, dim))
+    st.F[:] = F0 + 1e-3 * rng.standard_normal(st.F.shape)
+    st.x[:] = m.X @ A.T + 1e-3
+    st._forget_state_values()
+    st.rates()
+    assert np.abs(st.mismatch - (st.F - A)).max() < 1e-12
+    st.x[:] += 2e-5 * rng.standard_normal(m.X.shape)
+    st._forget_state_values()
+    st.rates()
+    fused = st.mismatch.copy()
+    st.mismatch[:] = 0.0
+    st._relax_towards_positions()            # the positions-only pass
+    assert np.abs(fused - (st.F - A)).max() > 1e-3     # the positions are no longer linear
+    assert np.abs(st.mismatch - fused).max() <= 1e-15 * np.abs(fused).max()
+
+
 @pytest.mark.parametrize("compatibility_time", [0.0, 30.0])
 def test_compatibility_relaxation_removes_the_compression_modes_in_3d(compatibility_time):
     """The same in 3D (6 x 3 x 3 boxes of tetrahedra, F11 = 0.9, sigma11 = -59 MPa, the full

@@ -704,7 +704,7 @@ class DeviceState:
         if s.relaxation_weight is not None:
             # F relaxed towards the gradient of the positions (scheme.stepper)
             if "G" not in A:
-                A["G"] = self.cuda.device_array(s.position_gradient.shape)
+                A["G"] = self.cuda.device_array((n, m.dim, m.dim + 1))
                 A["relaxation_weight"] = self.cuda.to_device(s.relaxation_weight)
             kernels(m.dim, m.dim, NO_LIMITER).limited_gradient[_blocks(n), THREADS](
                 A["x"], A["node_edge_start"], A["node_neighbour"], A["node_C"],

@@ -79,8 +79,8 @@ class ParallelFVStepper(FVStepper):
     def _exchange_gradients(self):
         self.halo.exchange(self.grad)
 
-    def _exchange_position_gradients(self):
-        self.halo.exchange(self.position_gradient)
+    def _exchange_mismatch(self):
+        self.halo.exchange(self.mismatch)
 
     def _first_bad(self, bad):
         n = self.global_disc.n_nodes

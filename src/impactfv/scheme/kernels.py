@@ -105,9 +105,15 @@ def slot(i, J, d, m):
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bface_start,
-                     bface_others, bface_C, closure, volume, kind, grad, dim, components):
+                     bface_others, bface_C, closure, volume, kind, grad, dim, components,
+                     x, F, mismatch, with_positions):
     """Limited Green-Gauss nodal gradient grad[a, i, J] of every component i of the nodal
     field v (n, m). ``components`` is a tuple of m zeros (a compile-time m, like ``dim``).
+    With ``with_positions`` the same pass also gives the mismatch D = F - G(x) (n, d, d) of
+    the compatibility relaxation (relax_towards_positions), G(x) the unlimited Green-Gauss
+    gradient of the positions x (n, d): each neighbour's area vector is read once for both
+    (the same sums as the gradient of v = x without limiter), and the relaxation then reads
+    one 3 x 3 block per neighbour instead of F's and G's.
 
     Gradient (exact for linear fields): grad_a = (sum over edges ab of (v_a + v_b)/2 C_ab +
     sum over the node's dual boundary faces of the closure state times S/d) / Omega_a, with
@@ -138,6 +144,12 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
             hi[i] = ua[i]
         for s in range(m * d):
             g[s] = 0.0
+        gx = local_matrix(d)          # the positions' gradient sums (with_positions)
+        xa = local_components(d)
+        for i in range(d):
+            xa[i] = x[a, i]
+            for J in range(d):
+                gx[i, J] = 0.0
         for k in range(node_edge_start[a], node_edge_start[a + 1]):
             b = node_neighbour[k]
             if d == 3:
@@ -150,6 +162,11 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                     mean = 0.5 * (ua[i] + v[b, i])
                     for J in range(d):
                         g[slot(i, J, d, m)] += mean * node_C[k, J]
+            if with_positions:
+                for i in range(d):
+                    mean = 0.5 * (xa[i] + x[b, i])
+                    for J in range(d):
+                        gx[i, J] += mean * node_C[k, J]
             for i in range(m):
                 lo[i] = min(lo[i], v[b, i])
                 hi[i] = max(hi[i], v[b, i])
@@ -176,7 +193,19 @@ def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bfac
                     mean *= inverse_denominator
                     for J in range(d):
                         g[slot(i, J, d, m)] += mean * bface_C[h, J]
+            if with_positions:
+                for i in range(d):
+                    mean = own * xa[i]
+                    for q in range(d - 1):
+                        mean += x[bface_others[h, q], i]
+                    mean *= inverse_denominator
+                    for J in range(d):
+                        gx[i, J] += mean * bface_C[h, J]
         inv = 1.0 / volume[a]
+        if with_positions:
+            for i in range(d):
+                for J in range(d):
+                    mismatch[a, i, J] = F[a, i, J] - gx[i, J] * inv
         if kind == L.NONE:
             for i in range(m):
                 for J in range(d):
@@ -504,15 +533,15 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edges, C, C_len, hal
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
-def relax_towards_positions(F, G, weight, owned, node_edge_start, node_neighbour, dF, dim):
+def relax_towards_positions(D, weight, owned, node_edge_start, node_neighbour, dF, dim):
     """dF_a -= sum over a's edge neighbours b of w_ab (D_a - D_b) at the nodes a < owned,
-    with D = F - G the mismatch of F and the gradient G of the positions (n, d, >= d) and
-    w_ab = w_ba the weight of the edge (per slot of node_neighbour; docs/theory.md,
-    "Compatibility relaxation"). A difference operator, so only the grid-scale part of D is
-    relaxed: a uniform D not at all, a smooth one through its O(h |grad D|) differences,
-    while the incompatible modes, which change sign from node to node, are relaxed at the
-    full rate. Symmetric, so its power sum_a P_a : dF_a = -sum over edges
-    w_ab (P_a - P_b) : (D_a - D_b) vanishes for a uniform stress."""
+    with D = F - G (n, d, d) the mismatch of F and the gradient G of the positions (written
+    by limited_gradient) and w_ab = w_ba the weight of the edge (per slot of node_neighbour;
+    docs/theory.md, "Compatibility relaxation"). A difference operator, so only the
+    grid-scale part of D is relaxed: a uniform D not at all, a smooth one through its
+    O(h |grad D|) differences, while the incompatible modes, which change sign from node to
+    node, are relaxed at the full rate. Symmetric, so its power sum_a P_a : dF_a = -sum over
+    edges w_ab (P_a - P_b) : (D_a - D_b) vanishes for a uniform stress."""
     d = len(dim)
     for a in prange(owned):
         # sum_b w_ab (D_a - D_b) = (sum_b w_ab) D_a - sum_b w_ab D_b: one pass over the
@@ -528,10 +557,10 @@ def relax_towards_positions(F, G, weight, owned, node_edge_start, node_neighbour
             total += w
             for i in range(d):
                 for J in range(d):
-                    weighted[i, J] += w * (F[b, i, J] - G[b, i, J])
+                    weighted[i, J] += w * D[b, i, J]
         for i in range(d):
             for J in range(d):
-                dF[a, i, J] -= total * (F[a, i, J] - G[a, i, J]) - weighted[i, J]
+                dF[a, i, J] -= total * D[a, i, J] - weighted[i, J]
 
 
 @njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)

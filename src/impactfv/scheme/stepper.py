@@ -68,9 +68,12 @@ class FVStepper:
         # "Compatibility relaxation")
         beta = float(case.run.compatibility_time)
         self.relaxation_weight = None
+        # F - G(x), written by the gradient pass (empty without the relaxation)
+        self.mismatch = np.zeros((0, d, d))
         if beta > 0.0:
             self.relaxation_weight = relaxation_weights(m, beta)
-            self.position_gradient = np.zeros((n, d, d + 1))
+            self.mismatch = np.zeros((n, d, d))
+        self._positions_gradient = None    # scratch of a positions-only gradient pass
         self.loads = Loads(case, m)
         self.time = 0.0
         # state
@@ -226,11 +229,14 @@ class FVStepper:
             elif self.stress_reconstructed:
                 # the ghosts' carried stress came with their state (ParallelStepper)
                 K.pack_velocity_and_stress(self.v[o:], self.sigma[o:], self.U[o:], self.dim)
+        relaxed = self.relaxation_weight is not None
         if self.order == 2:
+            # the positions' gradient of the compatibility relaxation in the same pass (the
+            # contact stage and the flux assembly do not move the positions)
             K.limited_gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C,
                                m.node_half, m.bface_start, m.bface_others, m.bface_C,
                                m.closure, m.volume, self.limiter, self.grad, self.dim,
-                               self.components)
+                               self.components, self.x, self.F, self.mismatch, relaxed)
             self._exchange_gradients()
         loads = self.loads
         stage_time = self.time + (self.dt if stage else 0.0)
@@ -247,8 +253,8 @@ class FVStepper:
                          self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
-        if self.relaxation_weight is not None:
-            self._relax_towards_positions()
+        if relaxed:
+            self._relax_towards_positions(gradient_done=self.order == 2)
         power = self.power[0]
         o = self.n_owned
         if loads.has_body_force:
@@ -268,23 +274,28 @@ class FVStepper:
             self._stage_sums.append(self.reaction_mask * (self.bc_force[self.reaction_rows]
                                                           - self.reaction_sum @ self.force[:o]))
 
-    def _relax_towards_positions(self):
+    def _relax_towards_positions(self, gradient_done=False):
         """Omega_a dF_a/dt -= sum over a's edge neighbours b of w_ab (D_a - D_b),
         D = F - G(x), with G(x) the Green-Gauss gradient of the nodal positions on the
         node's dual (with the boundary closure, so that it is exact for linear motions and a
         uniform state stays uniform) and w_ab = w_ba (relaxation_weights): only the
-        grid-scale part of the mismatch is relaxed, and a uniform stress does no work on it."""
+        grid-scale part of the mismatch is relaxed, and a uniform stress does no work on it.
+        ``gradient_done``: the gradient pass of the fields wrote D already (order 2)."""
         m = self.disc
-        K.limited_gradient(self.x, m.node_edge_start, m.node_neighbour, m.node_C, m.node_half,
-                           m.bface_start, m.bface_others, m.bface_C, m.closure, m.volume,
-                           LIMITER_IDS["none"], self.position_gradient, self.dim, self.dim)
-        # the owned nodes' differences read their ghost neighbours' gradients (MPI)
-        self._exchange_position_gradients()
-        K.relax_towards_positions(self.F, self.position_gradient, self.relaxation_weight,
-                                  self.n_owned, m.node_edge_start, m.node_neighbour, self.dF,
-                                  self.dim)
+        if not gradient_done:     # order 1: the positions' gradient pass alone
+            if self._positions_gradient is None:
+                self._positions_gradient = np.zeros((m.n_nodes, m.dim, m.dim + 1))
+            K.limited_gradient(self.x, m.node_edge_start, m.node_neighbour, m.node_C,
+                               m.node_half, m.bface_start, m.bface_others, m.bface_C,
+                               m.closure, m.volume, LIMITER_IDS["none"],
+                               self._positions_gradient, self.dim, self.dim, self.x, self.F,
+                               self.mismatch, True)
+        # the owned nodes' differences read their ghost neighbours' mismatch (MPI)
+        self._exchange_mismatch()
+        K.relax_towards_positions(self.mismatch, self.relaxation_weight, self.n_owned,
+                                  m.node_edge_start, m.node_neighbour, self.dF, self.dim)
 
-    def _exchange_position_gradients(self):
+    def _exchange_mismatch(self):
         pass
 
     def _close_stage(self, stage: int, rate: float, integration: float = 0.0):
