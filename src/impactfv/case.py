@@ -599,7 +599,7 @@ def _refuse_meshes_too_large(spec: CaseSpec, source: str):
     dim = 3 if any(spec.body[i].mesh.generator == "box" for i, _ in known) else 2
     problem = memory_problem(estimate([c for _, c in known], spec.run.order,
                                       spec.run.geometric_flux == "upwind", len(spec.contact),
-                                      dim=dim))
+                                      dim=dim, relaxed=spec.run.compatibility_time > 0))
     if problem:
         i, largest = max(known, key=lambda item: item[1].nodes)
         mesh = spec.body[i].mesh

@@ -123,9 +123,11 @@ class MemoryEstimate:
 
 
 def estimate(bodies: list[BodyCounts], order: int = 2, upwind: bool = True,
-             n_contacts: int = 0, steps: int = 0, dim: int = 2) -> MemoryEstimate:
+             n_contacts: int = 0, steps: int = 0, dim: int = 2,
+             relaxed: bool = True) -> MemoryEstimate:
     """The memory of an FV run of bodies of these sizes (see the module text); ``steps``:
-    the expected number of time steps (history rows)."""
+    the expected number of time steps (history rows); ``relaxed``: the compatibility
+    relaxation is on (run.compatibility_time > 0, the default)."""
     d = dim
     n = sum(b.nodes for b in bodies)
     t = sum(b.triangles for b in bodies)
@@ -155,6 +157,10 @@ def estimate(bodies: list[BodyCounts], order: int = 2, upwind: bool = True,
                    + 1 + 8 * d                                     # contact state, xdot
                    + (8 if d == 3 else 0)) + 8 * h                 # stretch bounds (3D),
                                                                    # face weights
+    if relaxed:
+        stepper += n * 8 * d * d + m * 2 * 8                       # mismatch D, edge weights
+        if order == 1:
+            stepper += n * 8 * d * (d + 1)                         # the positions' gradient
     contact = 0
     if n_contacts:
         faces = d * sum(b.boundary for b in bodies if b.in_contact)
@@ -191,7 +197,8 @@ def estimate_case(case, steps: int = 0) -> MemoryEstimate:
     contact_bodies = {name for c in case.contacts for name in c.bodies}
     bodies = [counts_of_mesh(b.mesh, b.name in contact_bodies) for b in case.bodies]
     return estimate(bodies, case.run.order, case.run.geometric_flux == "upwind",
-                    len(case.contacts), steps, case.bodies[0].mesh.dim)
+                    len(case.contacts), steps, case.bodies[0].mesh.dim,
+                    case.run.compatibility_time > 0)
 
 
 def format_bytes(value: float) -> str:
