@@ -23,6 +23,10 @@ from .overlap import boundary_straightness, closing_fractions, contact_pieces
 from .search import (BESIDE_IS_OPEN, BESIDE_MEASURED, BESIDE_OFFSET, find_partners,
                      forget_partners, near_each_other, surface_normals, wall_gaps)
 
+#: self-contact: a facet that a node lies behind, deeper than this fraction of the facet's
+#: length, is the body's own other side across a thin wall, not a partner (search.closest_facet)
+SELF_CONTACT_DEEPEST = 0.5
+
 
 @dataclass
 class Surface:
@@ -278,7 +282,8 @@ class ContactSystem:
             bins = build_bins(x, segs, self.pad)
             g = find_partners(x, near, self.normal_out, segs, *bins, self.pad,
                               self.partner, self.partner_w, self.partner_dist, self.gap,
-                              self.normal, *skip, self._beside(pair, apply))
+                              self.normal, *skip, self._beside(pair, apply),
+                              SELF_CONTACT_DEEPEST if pair.self_contact else 0.0)
             gmin = min(gmin, g)
             if not apply:
                 continue

@@ -56,11 +56,17 @@ def neighbouring(facets, s, a, skip_start, skip_nodes):
 
 @njit(cache=True, error_model="numpy")
 def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w, skip_start,
-                  skip_nodes):
+                  skip_nodes, deepest):
     """Closest partner facet facing node a within ``pad``: (facet, distance) with the
     barycentric weights of the closest point in w, or (-1, inf). Facing: the facet's
     outward normal and the node's point towards each other (a negative dot product, not
-    only by round-off: the faces of two blocks that meet at right angles are not facing)."""
+    only by round-off: the faces of two blocks that meet at right angles are not facing).
+
+    ``deepest`` > 0 (self-contact): a facet whose plane the node lies behind, deeper than
+    ``deepest`` times the facet's length (3D: the square root of its area), is not a
+    partner. It is the body's own other side across a thin wall (the outer face of a ring
+    behind its inner face), which faces the node as a partner would; taken for one, the
+    contact would press the wall together."""
     d = x.shape[1]
     best = -1
     best_d = np.inf
@@ -79,6 +85,14 @@ def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w, ski
             facing += S[m] * nrm[a, m]
         if facing >= -1e-12 * area:
             continue
+        if deepest > 0.0:
+            # how far the node lies in front of the facet's plane (negative: behind it)
+            offset = 0.0
+            p = facets[s, 0]
+            for m in range(d):
+                offset += (x[a, m] - x[p, m]) * S[m]
+            if offset < -deepest * area * (math.sqrt(area) if d == 3 else area):
+                continue
         dist = closest_point(x, facets[s], x[a], trial)
         if dist < best_d and dist <= pad:
             best = s
@@ -95,7 +109,7 @@ BESIDE_OFFSET, BESIDE_IS_OPEN, BESIDE_MEASURED = 0, 1, 2
 @njit(cache=True, error_model="numpy")
 def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, partner,
                   partner_w, partner_dist, gap, normal, skip_start, skip_nodes,
-                  beside):
+                  beside, deepest):
     """For every slave node: its partner facet (-1 if none within reach), the barycentric
     weights partner_w of the closest point on it, the distance, the gap and the contact
     normal n from the node into the partner (minus the facet's outward unit normal).
@@ -124,7 +138,7 @@ def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, pa
     for i in range(slave.shape[0]):
         a = slave[i]
         s, dist = closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w,
-                                skip_start, skip_nodes)
+                                skip_start, skip_nodes, deepest)
         partner[a] = s
         if s < 0:
             continue
