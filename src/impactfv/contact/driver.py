@@ -23,8 +23,9 @@ from .overlap import boundary_straightness, closing_fractions, contact_pieces
 from .search import (BESIDE_IS_OPEN, BESIDE_MEASURED, BESIDE_OFFSET, find_partners,
                      forget_partners, near_each_other, surface_normals, wall_gaps)
 
-#: self-contact: a facet that a node lies behind, deeper than this fraction of the facet's
-#: length, is the body's own other side across a thin wall, not a partner (search.closest_facet)
+#: self-contact: a facet whose plane a node lies behind, deeper than this fraction of the
+#: facet's length, is the body's own other side across a wall, not a partner (with the
+#: reference configuration's test of search.closest_facet, which this enables)
 SELF_CONTACT_DEEPEST = 0.5
 
 
@@ -280,7 +281,7 @@ class ContactSystem:
             segs = surface.facets[chosen]
             segment_faces = surface.facet_faces[chosen]
             bins = build_bins(x, segs, self.pad)
-            g = find_partners(x, near, self.normal_out, segs, *bins, self.pad,
+            g = find_partners(x, disc.X, near, self.normal_out, segs, *bins, self.pad,
                               self.partner, self.partner_w, self.partner_dist, self.gap,
                               self.normal, *skip, self._beside(pair, apply),
                               SELF_CONTACT_DEEPEST if pair.self_contact else 0.0)

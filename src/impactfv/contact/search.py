@@ -55,18 +55,21 @@ def neighbouring(facets, s, a, skip_start, skip_nodes):
 
 
 @njit(cache=True, error_model="numpy")
-def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w, skip_start,
+def closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w, skip_start,
                   skip_nodes, deepest):
     """Closest partner facet facing node a within ``pad``: (facet, distance) with the
     barycentric weights of the closest point in w, or (-1, inf). Facing: the facet's
     outward normal and the node's point towards each other (a negative dot product, not
     only by round-off: the faces of two blocks that meet at right angles are not facing).
 
-    ``deepest`` > 0 (self-contact): a facet whose plane the node lies behind, deeper than
-    ``deepest`` times the facet's length (3D: the square root of its area), is not a
-    partner. It is the body's own other side across a thin wall (the outer face of a ring
-    behind its inner face), which faces the node as a partner would; taken for one, the
-    contact would press the wall together."""
+    ``deepest`` > 0 (self-contact): the body's own other side across a thin wall (the outer
+    face of a ring behind its inner face) faces the node as a partner would; taken for one,
+    the contact would press the wall together. So a facet is not a partner
+    - if the node lay behind its plane and within ``pad`` of it in the reference
+      configuration X (they are the two sides of a wall thinner than the search radius; two
+      parts of a body that come together lie in front of each other there, or far apart),
+    - or if the node now lies behind its plane deeper than ``deepest`` times the facet's
+      length (3D: the square root of its area): a wall thinned below the search radius."""
     d = x.shape[1]
     best = -1
     best_d = np.inf
@@ -86,12 +89,21 @@ def closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w, ski
         if facing >= -1e-12 * area:
             continue
         if deepest > 0.0:
-            # how far the node lies in front of the facet's plane (negative: behind it)
+            # how far the node lies in front of the facet's plane (negative: behind it), now
+            # and in the reference configuration
             offset = 0.0
             p = facets[s, 0]
             for m in range(d):
                 offset += (x[a, m] - x[p, m]) * S[m]
             if offset < -deepest * area * (math.sqrt(area) if d == 3 else area):
+                continue
+            reference_area = facet_area_vector(X, facets[s], trial)
+            reference_offset = 0.0
+            for m in range(d):
+                reference_offset += (X[a, m] - X[p, m]) * trial[m]
+            if reference_offset < -1e-12 * reference_area * (
+                    math.sqrt(reference_area) if d == 3 else reference_area) \
+                    and closest_point(X, facets[s], X[a], trial) <= pad:
                 continue
         dist = closest_point(x, facets[s], x[a], trial)
         if dist < best_d and dist <= pad:
@@ -107,7 +119,7 @@ BESIDE_OFFSET, BESIDE_IS_OPEN, BESIDE_MEASURED = 0, 1, 2
 
 
 @njit(cache=True, error_model="numpy")
-def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, partner,
+def find_partners(x, X, slave, nrm, facets, origin, h, shape, start, items, pad, partner,
                   partner_w, partner_dist, gap, normal, skip_start, skip_nodes,
                   beside, deepest):
     """For every slave node: its partner facet (-1 if none within reach), the barycentric
@@ -137,7 +149,7 @@ def find_partners(x, slave, nrm, facets, origin, h, shape, start, items, pad, pa
     w = local_vector(d)
     for i in range(slave.shape[0]):
         a = slave[i]
-        s, dist = closest_facet(a, x, nrm, facets, origin, h, shape, start, items, pad, w,
+        s, dist = closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w,
                                 skip_start, skip_nodes, deepest)
         partner[a] = s
         if s < 0:
