@@ -7,6 +7,10 @@ import pytest
 from conftest import COPPER, COPPER_03, SOFT
 
 from impactfv import InputError, load_case, run
+from impactfv.contact.driver import SELF_CONTACT_DEEPEST
+from impactfv.contact.overlap import contact_pieces
+from impactfv.geometry.bins import build_bins
+from impactfv.scheme.stepper import FVStepper
 from impactfv.mesh.dual import median_dual
 from impactfv.mesh.generators import rectangle
 
@@ -190,6 +194,54 @@ def test_self_contact_does_not_take_the_far_side_of_a_thin_wall_for_a_partner(sh
     assert np.all(np.isnan(h["contact0_gap"]))
     assert all(np.all(h[k] == 0.0) for k in h if k.startswith("contact0_f"))
     assert np.allclose(h["total_energy"], alone["total_energy"], rtol=1e-12, atol=0.0)
+
+
+@pytest.mark.parametrize("shape", ["strip", "plate"])
+def test_contact_pieces_do_not_reach_across_a_thin_wall(shape):
+    """A node remembered in contact whose gap has opened (a remembered node stays in contact
+    until its contact would be tensile) builds pieces against every facing facet within its
+    partner's distance plus its face. In a self-contact that reach took in the body's own
+    far side across a thin wall: in a ring crushed by a disc, the inner face's nodes, 2.5 h
+    from the face they had touched, pressed the outer face into the floor wall (3.4% of h).
+    The pieces obey the search's rule (search.across_own_wall). Here the middle node of the
+    top face of a 0.3 mm strip (or plate) is given a partner 1 mm away: without the rule its
+    face overlaps the bottom face's facets, with it no piece is built."""
+    mesh, _ = THIN_WALLS[shape]
+    case = {"run": {"end_time": 1e-4}, "material": [dict(SOFT)],
+            "body": [{"name": "thin", "material": SOFT["name"], "velocity": [0.0] * len(
+                mesh["origin"]), "mesh": mesh}],
+            "contact": [{"bodies": ["thin"], "self": True, "model": "slip"}]}
+    stepper = FVStepper(load_case(case))
+    contact, x, X = stepper.contact, stepper.x, stepper.disc.X
+    pair = contact.pairs[0]
+    facets = pair.surfaces[0].facets
+    d = x.shape[1]
+    top = X[:, d - 1] > 0.0
+    a = np.flatnonzero(top)[np.argmin(np.linalg.norm(X[top, :d - 1], axis=1))]
+    up = np.zeros(d)
+    up[d - 1] = 1.0
+    contact.normal[a] = up
+    contact.partner[:] = -1
+    contact.partner[a] = 0
+    contact.partner_dist[a] = 1e-3
+    phi = np.zeros(len(x))
+    phi[a] = 1.0
+    bins = build_bins(x, facets, contact.pad)
+
+    def pieces_of_a(deepest):
+        count = contact_pieces(x, X, pair.surfaces[0].nodes, contact.partner,
+                               contact.partner_dist, contact.normal, phi, contact.face_start,
+                               contact.face_list, stepper.disc.bface_others,
+                               stepper.disc.bface_C, contact.straightness, facets, *bins,
+                               contact.piece_node, contact.piece_face, contact.piece_partner,
+                               contact.piece_segment, contact.piece_length,
+                               contact.piece_face_length, contact.piece_normal, *pair.skip,
+                               contact.pad, deepest)
+        assert count <= len(contact.piece_node)
+        return np.count_nonzero(contact.piece_node[:count] == a)
+
+    assert pieces_of_a(0.0) > 0
+    assert pieces_of_a(SELF_CONTACT_DEEPEST) == 0
 
 
 @pytest.mark.parametrize("contact,message", [

@@ -295,7 +295,8 @@ class ContactSystem:
                 RS.mark_followers(near, self.partner, self.partner_w, self.normal, pair.phi,
                                   segs, self.straightness, self.follower, self.follow_nodes,
                                   self.follow_w, self.follow_normal, self.follow_phi)
-            count = self._contact_pieces(x, near, segs, bins, skip, pair.phi)
+            count = self._contact_pieces(x, near, segs, bins, skip, pair.phi,
+                                         SELF_CONTACT_DEEPEST if pair.self_contact else 0.0)
             RS.piece_states(disc.X, x, F, v, sigma, disc.node_material,
                             disc.material_table, disc.bface_C, disc.bface_others, segs,
                             segment_faces, pair.phi, count, self.piece_node, self.piece_face,
@@ -312,7 +313,7 @@ class ContactSystem:
             return BESIDE_IS_OPEN
         return BESIDE_OFFSET if stage else BESIDE_MEASURED
 
-    def _contact_pieces(self, x, slave_nodes, segs, bins, skip, phi):
+    def _contact_pieces(self, x, slave_nodes, segs, bins, skip, phi, deepest):
         disc = self.disc
         while True:
             count = contact_pieces(x, disc.X, slave_nodes, self.partner, self.partner_dist,
@@ -322,7 +323,7 @@ class ContactSystem:
                                    self.piece_node,
                                    self.piece_face, self.piece_partner, self.piece_segment,
                                    self.piece_length, self.piece_face_length,
-                                   self.piece_normal, *skip)
+                                   self.piece_normal, *skip, self.pad, deepest)
             if count <= len(self.piece_node):
                 return count
             self._pieces(2 * count)

@@ -20,7 +20,7 @@ from ..geometry.bins import bin_of
 from ..geometry.facets import (MAX_POLYGON, clip_polygon, closest_point, dual_face_polygon,
                                dual_face_vector, facet_area_vector, plane_frame, polygon_area,
                                project_to_plane)
-from .search import neighbouring
+from .search import across_own_wall, neighbouring
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -84,7 +84,8 @@ def boundary_straightness(X, bface_node, bface_others):
 def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                    bface_others, bface_C, straightness, facets, origin, h, shape, start, items,
                    piece_node, piece_face, piece_partner, piece_segment, piece_length,
-                   piece_face_length, piece_normal, skip_start, skip_nodes):
+                   piece_face_length, piece_normal, skip_start, skip_nodes, pad,
+                   deepest):
     """Pieces of the slave nodes in contact this step (phi > 0) against the master facets
     near them, in node order: piece_length is the size of the overlap (a length in 2D, an
     area in 3D), piece_face_length the size of the slave's face.
@@ -99,6 +100,10 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
     face's normal is the contact normal (docs/contact.md, "Pieces"). Both passes
     of a contact then see the same normal, also at the ends of a face where the two
     surfaces are not parallel.
+    In a self-contact (``deepest`` > 0) a facet that is the node's own body's other side
+    across a wall (search.across_own_wall, with the search radius ``pad``) takes no part,
+    as it is no partner in the search: a node remembered in contact with its gap opened
+    reaches that far, and its pieces pressed the wall together.
     Returns the number of pieces; when it exceeds the capacity of the piece arrays only the
     count is meaningful and the caller grows them and calls again.
     """
@@ -107,18 +112,18 @@ def contact_pieces(x, X, slave, partner, partner_dist, normal, phi, face_start, 
                           face_list, bface_others, bface_C, straightness, facets, origin, h,
                           shape, start, items, piece_node, piece_face, piece_partner,
                           piece_segment, piece_length, piece_face_length, piece_normal,
-                          skip_start, skip_nodes)
+                          skip_start, skip_nodes, pad, deepest)
     return _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                       bface_others, bface_C, facets, origin, h, shape, start, items,
                       piece_node, piece_face, piece_partner, piece_segment, piece_length,
-                      piece_face_length, piece_normal, skip_start, skip_nodes)
+                      piece_face_length, piece_normal, skip_start, skip_nodes, pad, deepest)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                bface_others, bface_C, facets, origin, h, shape, start, items, piece_node,
                piece_face, piece_partner, piece_segment, piece_length, piece_face_length,
-               piece_normal, skip_start, skip_nodes):
+               piece_normal, skip_start, skip_nodes, pad, deepest):
     """contact_pieces in 3D: each face quadrilateral, projected on the plane of a facing
     master triangle, clipped by the quadrilaterals of the triangle's three nodes."""
     capacity = piece_node.shape[0]
@@ -157,6 +162,8 @@ def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
             for it in range(start[cell], start[cell + 1]):
                 sm = items[it]
                 if neighbouring(facets, sm, a, skip_start, skip_nodes):
+                    continue
+                if across_own_wall(a, x, X, facets[sm], pad, deepest, S):
                     continue
                 area = facet_area_vector(x, facets[sm], S)
                 facing_contact = 0.0
@@ -208,10 +215,11 @@ def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
 def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face_list,
                    bface_others, bface_C, straightness, segs, origin, h, shape, start, items,
                    piece_node, piece_face, piece_partner, piece_segment, piece_length,
-                   piece_face_length, piece_normal, skip_start, skip_nodes):
+                   piece_face_length, piece_normal, skip_start, skip_nodes, pad, deepest):
     """contact_pieces in 2D: half-edges against half-segments, by interval overlap."""
     capacity = piece_node.shape[0]
     count = 0
+    scratch = local_vector(2)
     for i in range(slave.shape[0]):
         a = slave[i]
         if phi[a] == 0.0 or partner[a] < 0:
@@ -235,6 +243,8 @@ def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
             for it in range(start[cell], start[cell + 1]):
                 sm = items[it]
                 if neighbouring(segs, sm, a, skip_start, skip_nodes):
+                    continue
+                if across_own_wall(a, x, X, segs[sm], pad, deepest, scratch):
                     continue
                 mp = segs[sm, 0]
                 mq = segs[sm, 1]

@@ -54,6 +54,35 @@ def neighbouring(facets, s, a, skip_start, skip_nodes):
     return False
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def across_own_wall(a, x, X, facet, pad, deepest, scratch):
+    """Whether, in a self-contact (``deepest`` > 0), the facet is the node's own body's other
+    side across a wall rather than a partner (closest_facet; the contact pieces apply the
+    same rule): the node lay behind the facet's plane and within ``pad`` of it in the
+    reference configuration X, or it now lies behind the plane deeper than ``deepest`` times
+    the facet's length (3D: the square root of its area). ``scratch``: a d-vector."""
+    if deepest <= 0.0:
+        return False
+    d = x.shape[1]
+    p = facet[0]
+    # how far the node lies in front of the facet's plane (negative: behind it), now and in
+    # the reference configuration, in units of the facet's size
+    area = facet_area_vector(x, facet, scratch)
+    offset = 0.0
+    for m in range(d):
+        offset += (x[a, m] - x[p, m]) * scratch[m]
+    if offset < -deepest * area * (math.sqrt(area) if d == 3 else area):
+        return True
+    reference_area = facet_area_vector(X, facet, scratch)
+    reference_offset = 0.0
+    for m in range(d):
+        reference_offset += (X[a, m] - X[p, m]) * scratch[m]
+    return (reference_offset < -1e-12 * reference_area * (
+        math.sqrt(reference_area) if d == 3 else reference_area)
+        and closest_point(X, facet, X[a], scratch) <= pad)
+
+
+
 @njit(cache=True, error_model="numpy")
 def closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w, skip_start,
                   skip_nodes, deepest):
@@ -88,23 +117,8 @@ def closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w, 
             facing += S[m] * nrm[a, m]
         if facing >= -1e-12 * area:
             continue
-        if deepest > 0.0:
-            # how far the node lies in front of the facet's plane (negative: behind it), now
-            # and in the reference configuration
-            offset = 0.0
-            p = facets[s, 0]
-            for m in range(d):
-                offset += (x[a, m] - x[p, m]) * S[m]
-            if offset < -deepest * area * (math.sqrt(area) if d == 3 else area):
-                continue
-            reference_area = facet_area_vector(X, facets[s], trial)
-            reference_offset = 0.0
-            for m in range(d):
-                reference_offset += (X[a, m] - X[p, m]) * trial[m]
-            if reference_offset < -1e-12 * reference_area * (
-                    math.sqrt(reference_area) if d == 3 else reference_area) \
-                    and closest_point(X, facets[s], X[a], trial) <= pad:
-                continue
+        if across_own_wall(a, x, X, facets[s], pad, deepest, trial):
+            continue
         dist = closest_point(x, facets[s], x[a], trial)
         if dist < best_d and dist <= pad:
             best = s
