@@ -10,9 +10,9 @@ from impactfv import InputError, load_case, run
 from impactfv.contact.driver import SELF_CONTACT_DEEPEST
 from impactfv.contact.overlap import contact_pieces
 from impactfv.geometry.bins import build_bins
-from impactfv.scheme.stepper import FVStepper
 from impactfv.mesh.dual import median_dual
 from impactfv.mesh.generators import rectangle
+from impactfv.scheme.stepper import FVStepper
 
 
 def oblique_block(model, friction=None, end_time=3e-5):

@@ -163,8 +163,6 @@ def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
                 sm = items[it]
                 if neighbouring(facets, sm, a, skip_start, skip_nodes):
                     continue
-                if across_own_wall(a, x, X, facets[sm], pad, deepest, S):
-                    continue
                 area = facet_area_vector(x, facets[sm], S)
                 facing_contact = 0.0
                 facing_face = 0.0
@@ -173,6 +171,8 @@ def _pieces_3d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
                     facing_contact += sn[c] * normal[a, c]
                     facing_face += sn[c] * f[c]
                 if facing_contact <= 0.0 or facing_face <= 0.0:
+                    continue
+                if across_own_wall(a, x, X, facets[sm], pad, deepest, w):
                     continue
                 mp = facets[sm, 0]
                 # a facet farther from the node than the reach cannot overlap its face
@@ -244,8 +244,6 @@ def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
                 sm = items[it]
                 if neighbouring(segs, sm, a, skip_start, skip_nodes):
                     continue
-                if across_own_wall(a, x, X, segs[sm], pad, deepest, scratch):
-                    continue
                 mp = segs[sm, 0]
                 mq = segs[sm, 1]
                 e1 = x[mq, 0] - x[mp, 0]
@@ -254,6 +252,8 @@ def _pieces_2d(x, X, slave, partner, partner_dist, normal, phi, face_start, face
                 s1 = -e2 / Ls  # inward normal of the master segment
                 s2 = e1 / Ls
                 if s1 * n1 + s2 * n2 <= 0.0 or s1 * f1 + s2 * f2 <= 0.0:
+                    continue
+                if across_own_wall(a, x, X, segs[sm], pad, deepest, scratch):
                     continue
                 off = abs((x[a, 0] - x[mp, 0]) * s1 + (x[a, 1] - x[mp, 1]) * s2)
                 if off > reach:

@@ -82,7 +82,6 @@ def across_own_wall(a, x, X, facet, pad, deepest, scratch):
         and closest_point(X, facet, X[a], scratch) <= pad)
 
 
-
 @njit(cache=True, error_model="numpy")
 def closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w, skip_start,
                   skip_nodes, deepest):
