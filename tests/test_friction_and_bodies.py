@@ -159,6 +159,59 @@ def test_self_contact_closes_a_slit_without_penetration(tmp_path):
     assert (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).min() > 0
 
 
+def crushed_ring(wall, cells):
+    """A heavy disc (radius 4 mm, rho = 8000, E = 500 MPa) at 1.5 m/s onto the top of a soft
+    ring (radius 10 mm, E = 5 MPa, nu = 0.45, rho = 1000) lying on a floor wall; slip
+    everywhere: the floor (contact 0), disc and ring (1), the ring with itself (2)."""
+    radius, gap = 10e-3, 0.05e-3
+    return {"run": {"end_time": 16e-3, "output_interval": 16e-3},
+            "material": [{"name": "rubber", "model": "neo_hookean", "density": 1000.0,
+                          "youngs_modulus": 5e6, "poisson_ratio": 0.45},
+                         {"name": "heavy", "model": "neo_hookean", "density": 8000.0,
+                          "youngs_modulus": 500e6, "poisson_ratio": 0.3}],
+            "body": [{"name": "ring", "material": "rubber",
+                      "mesh": {"generator": "annulus", "centre": [0.0, 0.0], "radius": radius,
+                               "inner_radius": radius - wall, "rings": cells}},
+                     {"name": "disc", "material": "heavy", "velocity": [0.0, -1.5],
+                      "mesh": {"generator": "disc", "centre": [0.0, radius + 4e-3 + gap],
+                               "radius": 4e-3, "rings": 8}}],
+            "contact": [{"bodies": ["ring"], "model": "slip",
+                         "wall": {"point": [0.0, -radius - gap], "normal": [0.0, 1.0]}},
+                        {"bodies": ["disc", "ring"], "model": "slip"},
+                        {"bodies": ["ring"], "self": True, "model": "slip"}]}
+
+
+@pytest.mark.parametrize("wall, cells", [(0.6e-3, 2),
+                                         pytest.param(0.5e-3, 3, marks=pytest.mark.slow)])
+def test_a_ring_crushed_until_its_inner_faces_touch(wall, cells):
+    """Issue 13's self-contact case: the disc flattens the ring against the floor until the
+    ring's inner faces touch (at about 13.5 ms) and press on each other. No contact
+    penetrates by more than 1% of the ring's cell size h = wall / cells (measured, floor /
+    disc / self: -0.31% / none / none of h with 2 cells, -0.02% / none / -0.68% with 3), no
+    triangle turns inside out, and the energy balance column stays at its start to 1e-5 of
+    the energy (measured 2e-6 and 3e-6). The balance holds only with Heun's energy excess
+    taken with the material's elasticity at the node's state: with the small-strain one
+    (before 2026-12-07) it was off by 20% and 26% of the energy, as Barth-Jespersen's factor switches
+    between the Runge-Kutta stages on the ring's bending waves and the integration column
+    reaches the size of the energy (docs/contact.md, "Known limitations"). The 3-cell wall is
+    a slow test (about 3 minutes)."""
+    result = run(load_case(crushed_ring(wall, cells)))
+    h, cell = result.history, wall / cells
+    self_force = np.hypot(h["contact2_fx"], h["contact2_fy"])
+    touching = np.flatnonzero(self_force > 0.0)
+    assert len(touching) and h["time"][touching[0]] > 10e-3        # the inner faces touch
+    for k in range(3):
+        assert np.nanmin(h[f"contact{k}_gap"]) > -0.01 * cell
+    E0 = h["total_energy"][0]
+    balance = h["energy_balance"]
+    assert np.abs(balance - balance[0]).max() < 1e-5 * E0
+    assert h["integration_energy"][-1] > 0.1 * E0     # the stages' rates do differ a lot
+    ring = result.bodies["ring"]
+    p = ring["points"][ring["triangles"]]
+    e1, e2 = p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]
+    assert (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]).min() > 0
+
+
 THIN_WALLS = {
     # a ring, wall 0.3 mm in one cell, facets about 0.3 mm long
     "ring": ({"generator": "annulus", "centre": [0.0, 0.0], "radius": 10e-3,

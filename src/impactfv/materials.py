@@ -177,6 +177,57 @@ def strain_energy_density(F, props):
             + 0.5 * props[KAPPA] * (J_ - 1.0) ** 2)
 
 
+def energy_second_derivative(F, D, props):
+    """D : A(F) : D = d^2/de^2 W(F + e D) at e = 0, the second derivative of the stored
+    energy along the direction D (d x d), A = d^2 W / dF dF the elasticity tensor. Linear
+    elastic: lambda (tr D)^2 + 2 mu |sym D|^2. Neo-Hookean, with M = adj(F) D (so that
+    dJ/de = tr M and d^2J/de^2 = ((tr M)^2 - tr(M^2)) / J), S = F3 : F3 and f = J^(-2/3):
+
+        mu/2 (f'' S + 2 f' S' + 2 f D:D) + kappa (J'^2 + (J - 1) J'')
+
+    with S' = 2 F:D, f' = -2/3 J^(-5/3) J', f'' = 10/9 J^(-8/3) J'^2 - 2/3 J^(-5/3) J''."""
+    d = F.shape[0]
+    mu = props[MU]
+    if int(props[LAW]) == LINEAR_ELASTIC:
+        trace = 0.0
+        sym2 = 0.0
+        for i in range(d):
+            trace += D[i, i]
+            sym2 += D[i, i] * D[i, i]
+            for J in range(i + 1, d):
+                shear = D[i, J] + D[J, i]
+                sym2 += 0.5 * shear * shear
+        return props[LAMBDA] * trace * trace + 2.0 * mu * sym2
+    J_ = determinant(F)
+    # M = adj(F) D, adj(F)_ik = (cof F)_ki; tr M and tr(M^2)
+    trM = 0.0
+    trM2 = 0.0
+    for i in range(d):
+        for j in range(d):
+            mij = 0.0
+            mji = 0.0
+            for k in range(d):
+                mij += cofactor_entry(F, k, i) * D[k, j]
+                mji += cofactor_entry(F, k, j) * D[k, i]
+            trM2 += mij * mji
+            if i == j:
+                trM += mij
+    dJ = trM
+    d2J = (trM * trM - trM2) / J_
+    FD = 0.0
+    DD = 0.0
+    for i in range(d):
+        for J in range(d):
+            FD += F[i, J] * D[i, J]
+            DD += D[i, J] * D[i, J]
+    f = J_ ** (-2.0 / 3.0)
+    f1 = -2.0 / 3.0 * f / J_ * dJ
+    f2 = 10.0 / 9.0 * f / (J_ * J_) * dJ * dJ - 2.0 / 3.0 * f / J_ * d2J
+    S = _squared_norm_3d(F)
+    return (0.5 * mu * (f2 * S + 4.0 * f1 * FD + 2.0 * f * DD)
+            + props[KAPPA] * (dJ * dJ + (J_ - 1.0) * d2J))
+
+
 def _neo_hookean_cauchy_stress(F, props, sigma):
     """sigma = mu J^(-5/3) dev(b) + kappa (J - 1) I with b = F F^T (b3 = diag(b, 1) in 2D)
     into sigma; returns (J, J^(-5/3), tr b3, kappa (J - 1)) for the callers' other

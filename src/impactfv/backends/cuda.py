@@ -503,6 +503,7 @@ def _make_kernels(d, m, kind):
                 inv_volume = 1.0 / volume[a]
                 inv_mass = inv_volume / props[RHO]
                 change = cuda.local.array((d, d), float64)
+                midway = cuda.local.array((d, d), float64)
                 dv2 = 0.0
                 for i in range(d):
                     if not fixed_mask[a, i]:
@@ -510,7 +511,8 @@ def _make_kernels(d, m, kind):
                         dv2 += dv * dv
                     for J in range(d):
                         change[i, J] = dF[a, i, J] * inv_volume - (F[a, i, J] - F0[a, i, J]) / dt
-                part[tid, 2] = heun_energy_excess(dt, props, volume[a], dv2, change)
+                        midway[i, J] = 0.5 * (F0[a, i, J] + F[a, i, J])
+                part[tid, 2] = heun_energy_excess(dt, props, volume[a], dv2, change, midway)
             Fa = cuda.local.array((d, d), float64)
             Sa = cuda.local.array((d, d), float64)
             Da = cuda.local.array((d, d), float64)

@@ -688,14 +688,18 @@ def rk_update_last(alpha, dt, v0, F0, x0, v, F, x, force, dF, sigma, contact_sta
                 v[a, i] = vn
                 va[i] = vn
                 finite = finite and np.isfinite(vn)
+            # the state midway between u0 and u*, where the elasticity of the energy the step
+            # adds is taken
+            midway = local_matrix(d)
             for i in range(d):
                 for J in range(d):
                     rate = dF[a, i, J] * inv_volume
                     change[i, J] = rate - (F[a, i, J] - F0[a, i, J]) * inv_dt
+                    midway[i, J] = 0.5 * (F0[a, i, J] + F[a, i, J])
                     f = rk_stage(alpha, F0[a, i, J], F[a, i, J], dt, rate)
                     F[a, i, J] = f
                     Fa[i, J] = f
-            integration += heun_energy_excess(dt, props, volume[a], dv2, change)
+            integration += heun_energy_excess(dt, props, volume[a], dv2, change, midway)
             jac = determinant(Fa)
             if not (finite and np.isfinite(jac) and jac > 0.0):
                 first_bad = min(first_bad, a)

@@ -6,7 +6,7 @@
 The same update serves both stages: alpha = 0 for the first, 1/2 for the second.
 """
 
-from ..materials import LAMBDA, MU, RHO
+from ..materials import RHO, energy_second_derivative
 
 STAGES = (0.0, 0.5)
 
@@ -17,7 +17,7 @@ def rk_stage(alpha, u0, u, dt, rate):
     return alpha * u0 + (1.0 - alpha) * (u + dt * rate)
 
 
-def heun_energy_excess(dt, props, omega, dv2, D):
+def heun_energy_excess(dt, props, omega, dv2, D, F):
     """The energy the two-stage step adds at a node beyond the Runge-Kutta mean of its stage
     energy rates. For an energy quadratic in the state u with Hessian M, the step
     u* = u0 + dt L0, u1 = (u0 + u* + dt L1) / 2 changes it by exactly
@@ -27,17 +27,8 @@ def heun_energy_excess(dt, props, omega, dv2, D):
     the last term returned here (docs/theory.md, "Energy balance"). The caller gives the
     change of the node's rates between the stages, L1 - L0 with L0 = (u* - u0) / dt: dv2 the
     squared change of the acceleration summed over the integrated (not held) components, D
-    that of dF/dt (d x d). M is the mass rho omega for v and for F the small-strain elasticity
-    omega (lambda (tr D)^2 + 2 mu |sym D|^2): exact for linear elastic materials, the
-    small-strain limit of the neo-Hookean Hessian."""
-    d = D.shape[0]
-    trace = 0.0
-    sym2 = 0.0
-    for i in range(d):
-        trace += D[i, i]
-        sym2 += D[i, i] * D[i, i]
-        for J in range(i + 1, d):
-            shear = D[i, J] + D[J, i]
-            sym2 += 0.5 * shear * shear
-    strain = props[LAMBDA] * trace * trace + 2.0 * props[MU] * sym2
-    return 0.125 * dt * dt * omega * (props[RHO] * dv2 + strain)
+    that of dF/dt (d x d). M is the mass rho omega for v and for F the elasticity tensor of
+    the material at F (materials.energy_second_derivative), which the caller takes midway
+    between u0 and u*: exact for linear elastic materials, for finite-strain ones to the
+    third order in the step."""
+    return 0.125 * dt * dt * omega * (props[RHO] * dv2 + energy_second_derivative(F, D, props))
