@@ -7,8 +7,9 @@ import numpy as np
 import pytest
 from conftest import COPPER, material
 
-from impactfv.materials import (LINEAR_ELASTIC, NEO_HOOKEAN, cauchy_stress, first_piola,
-                                min_stretch, pressure_and_von_mises, strain_energy_density)
+from impactfv.materials import (LINEAR_ELASTIC, NEO_HOOKEAN, cauchy_stress,
+                                energy_second_derivative, first_piola, min_stretch,
+                                pressure_and_von_mises, strain_energy_density)
 
 SEED = material(COPPER)
 
@@ -57,6 +58,28 @@ def test_piola_is_derivative_of_energy(law, d):
                 num[i, j] = (strain_energy_density(Fp, props(law))
                              - strain_energy_density(Fm, props(law))) / (2 * h)
         assert np.abs(P - num).max() < 1e-6 * np.abs(P).max()
+
+
+@pytest.mark.parametrize("d", [2, 3])
+@pytest.mark.parametrize("law", [NEO_HOOKEAN, LINEAR_ELASTIC])
+def test_elasticity_is_the_second_derivative_of_energy(law, d):
+    """D : A(F) : D (the energy norm of Heun's excess, docs/theory.md "Energy balance") is
+    the derivative of P(F + e D) : D in e, at large strain too (F - I of order 0.3), and for
+    the linear law lambda (tr D)^2 + 2 mu |sym D|^2 whatever F."""
+    rng = np.random.default_rng(2)
+    for _ in range(5):
+        F = np.eye(d) + 0.3 * rng.standard_normal((d, d))
+        if np.linalg.det(F) < 0.2:
+            continue
+        D = rng.standard_normal((d, d))
+        h = 1e-6
+        num = np.sum((piola(F + h * D, law) - piola(F - h * D, law)) * D) / (2 * h)
+        exact = energy_second_derivative(F, D, props(law))
+        assert exact == pytest.approx(num, rel=1e-6)
+        if law == LINEAR_ELASTIC:
+            sym = 0.5 * (D + D.T)
+            assert exact == pytest.approx(SEED.lam * np.trace(D) ** 2
+                                          + 2 * SEED.mu * np.sum(sym * sym), rel=1e-13)
 
 
 @pytest.mark.parametrize("d", [2, 3])
