@@ -516,8 +516,8 @@ class FVStepper:
         extra = self.contact.history_values() if self.contact is not None else []
         # the energy balance: what the bodies hold minus the work done on them plus what the
         # scheme dissipated (upwinding at fronts and boundaries, the contacts) minus what the
-        # time stepping added; constant up to the third-order and the non-quadratic parts of
-        # the time-integration error
+        # time stepping added; constant up to the third-order part of the time-integration
+        # error
         balance = kinetic + strain - self.external_work + self.dissipated - self.integration
         return [kinetic, strain, kinetic + strain, *momentum, self.external_work,
                 self.dissipated, self.integration, balance, *self.reaction.ravel(), *extra]
