@@ -154,6 +154,19 @@ def _small_strain(F, i, J):
     return 0.5 * (F[i, J] + F[J, i]) - (1.0 if i == J else 0.0)
 
 
+def _linear_energy(G, identity, props):
+    """lambda/2 tr(E)^2 + mu E:E with E = sym(G) - identity I: the linear elastic energy of
+    F = G (identity = 1), or of the displacement gradient G (identity = 0)."""
+    d = G.shape[0]
+    tr = 0.0
+    ee = 0.0
+    for i in range(d):
+        tr += G[i, i] - identity
+        for J in range(d):
+            ee += (0.5 * (G[i, J] + G[J, i]) - (identity if i == J else 0.0)) ** 2
+    return 0.5 * props[LAMBDA] * tr * tr + props[MU] * ee
+
+
 def _linear_stress(F, i, J, tr, lam, mu):
     """sigma_iJ = lambda tr(eps) delta_iJ + 2 mu eps_iJ (small strain)."""
     return (lam * tr if i == J else 0.0) + 2.0 * mu * _small_strain(F, i, J)
@@ -162,16 +175,9 @@ def _linear_stress(F, i, J, tr, lam, mu):
 def strain_energy_density(F, props):
     """Stored energy per unit reference volume W(F), whose derivative is the P of seed
     eq. 1a."""
-    d = F.shape[0]
     mu = props[MU]
     if int(props[LAW]) == LINEAR_ELASTIC:
-        tr = 0.0
-        ee = 0.0
-        for i in range(d):
-            tr += F[i, i] - 1.0
-            for J in range(d):
-                ee += _small_strain(F, i, J) ** 2
-        return 0.5 * props[LAMBDA] * tr * tr + mu * ee
+        return _linear_energy(F, 1.0, props)
     J_ = determinant(F)
     return (0.5 * mu * J_ ** (-2.0 / 3.0) * _squared_norm_3d(F) - 1.5 * mu
             + 0.5 * props[KAPPA] * (J_ - 1.0) ** 2)
@@ -189,15 +195,9 @@ def energy_second_derivative(F, D, props):
     d = F.shape[0]
     mu = props[MU]
     if int(props[LAW]) == LINEAR_ELASTIC:
-        trace = 0.0
-        sym2 = 0.0
-        for i in range(d):
-            trace += D[i, i]
-            sym2 += D[i, i] * D[i, i]
-            for J in range(i + 1, d):
-                shear = D[i, J] + D[J, i]
-                sym2 += 0.5 * shear * shear
-        return props[LAMBDA] * trace * trace + 2.0 * mu * sym2
+        # the energy is quadratic in F - I: its second derivative along D is twice its value
+        # at F - I = D
+        return 2.0 * _linear_energy(D, 0.0, props)
     J_ = determinant(F)
     # M = adj(F) D, adj(F)_ik = (cof F)_ki; tr M and tr(M^2)
     trM = 0.0

@@ -55,6 +55,20 @@ def neighbouring(facets, s, a, skip_start, skip_nodes):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _offset_from_plane(a, x, facet, scratch):
+    """(how far node a lies in front of the facet's plane times its area, that area times the
+    facet's size: its area in 2D, the square root of its area in 3D); negative offsets are
+    behind the plane. ``scratch``: a d-vector."""
+    d = x.shape[1]
+    p = facet[0]
+    area = facet_area_vector(x, facet, scratch)
+    offset = 0.0
+    for m in range(d):
+        offset += (x[a, m] - x[p, m]) * scratch[m]
+    return offset, area * (math.sqrt(area) if d == 3 else area)
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def across_own_wall(a, x, X, facet, pad, deepest, scratch):
     """Whether, in a self-contact (``deepest`` > 0), the facet is the node's own body's other
     side across a wall rather than a partner (closest_facet; the contact pieces apply the
@@ -63,23 +77,11 @@ def across_own_wall(a, x, X, facet, pad, deepest, scratch):
     the facet's length (3D: the square root of its area). ``scratch``: a d-vector."""
     if deepest <= 0.0:
         return False
-    d = x.shape[1]
-    p = facet[0]
-    # how far the node lies in front of the facet's plane (negative: behind it), now and in
-    # the reference configuration, in units of the facet's size
-    area = facet_area_vector(x, facet, scratch)
-    offset = 0.0
-    for m in range(d):
-        offset += (x[a, m] - x[p, m]) * scratch[m]
-    if offset < -deepest * area * (math.sqrt(area) if d == 3 else area):
+    offset, scale = _offset_from_plane(a, x, facet, scratch)
+    if offset < -deepest * scale:
         return True
-    reference_area = facet_area_vector(X, facet, scratch)
-    reference_offset = 0.0
-    for m in range(d):
-        reference_offset += (X[a, m] - X[p, m]) * scratch[m]
-    return (reference_offset < -1e-12 * reference_area * (
-        math.sqrt(reference_area) if d == 3 else reference_area)
-        and closest_point(X, facet, X[a], scratch) <= pad)
+    offset, scale = _offset_from_plane(a, X, facet, scratch)
+    return offset < -1e-12 * scale and closest_point(X, facet, X[a], scratch) <= pad
 
 
 @njit(cache=True, error_model="numpy")
