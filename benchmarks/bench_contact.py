@@ -9,8 +9,8 @@ Each variant runs to ``--start`` (default 100 us, when every interface of the st
 pressed) and then times ``--steps`` steps (``stepper.step(dt)`` with dt from
 ``stable_dt()``), in CPU time (``time.process_time``), the fastest of ``--repeats`` blocks.
 Printed: ms per step, the share above the run without contact, and the mean number of
-nodes in contact over the timed steps. The variants differ in physics (without contact the bodies pass
-through each other), so only the cost is comparable, not the states.
+nodes in contact over the timed steps. The variants differ in physics (without contact the
+bodies pass through each other), so only the cost is comparable, not the states.
 """
 
 from __future__ import annotations
