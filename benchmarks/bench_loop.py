@@ -20,7 +20,7 @@ spread). Three measurements, each the fastest of ``--repeats`` blocks of ``--ste
   first state's monitors and time step, the first stage's stress, the fields of the result)
   spread over the block: 40 steps per block in 2D (4 in 3D) by default, as a run of a few
   hundred steps; those one-off costs are printed on their own (a 1-step run less one step);
-* profile: the loop body of the run with every kernel of ``impactfv.scheme.kernels``
+* profile: the loop body of the run with every kernel of ``impactfv.backends.cpu``
   wrapped in a CPU-time timer; "outside kernels" is the rest (Python, copies, history).
 """
 
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
 
     import impactfv
     from impactfv.pipeline.run import Schedule, run_stepper
-    from impactfv.scheme import kernels as K
+    from impactfv.backends import cpu as K
     from impactfv.scheme.stepper import FVStepper
 
     numba.set_num_threads(1)

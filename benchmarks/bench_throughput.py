@@ -14,7 +14,7 @@ order 2 (Barth-Jespersen) and order 1, and each numba thread count, the script r
 * the time per step split by kernel (compute_stress, velocity_gradient, limit_gradient,
   assemble_rates, rk_update inside ``step``; stable_time_step, state_is_bad and monitors that
   ``impactfv.run`` calls once per step outside it). The split is taken in a second pass in
-  which every kernel of ``impactfv.scheme.kernels`` is temporarily replaced by a timing
+  which every kernel of ``impactfv.backends.cpu`` is temporarily replaced by a timing
   wrapper, so it follows whatever arguments the stepper passes; "other" is step time not
   spent in a kernel (array copies, Python);
 * peak resident memory (ru_maxrss) per node. Each size runs in a fresh subprocess, so sizes
@@ -123,7 +123,7 @@ def current_rss_bytes() -> int:
 # ------------------------------------------------------------------------------ timing
 
 class KernelTimer:
-    """Replace every kernel of ``impactfv.scheme.kernels`` by a timing wrapper, then restore.
+    """Replace every kernel of ``impactfv.backends.cpu`` by a timing wrapper, then restore.
 
     Only kernels defined in kernels.py are wrapped (not the material/Riemann point functions
     it compiles), and only after a warm-up, so no compilation happens while they are wrapped.
@@ -230,7 +230,7 @@ def worker(nodes_requested: int, threads: list[int], steps: int | None, orders: 
     import numpy as np
 
     import impactfv
-    from impactfv.scheme import kernels as K
+    from impactfv.backends import cpu as K
     from impactfv.scheme.stepper import FVStepper
 
     # warm-up on a tiny case: loads every kernel from the numba cache (or compiles it)

@@ -14,7 +14,7 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np
 import pytest
 
-from impactfv.materials import Material
+from impactfv.physics.materials import Material
 from impactfv.validation.bars import SEED_MATERIAL
 from impactfv.validation.standing_wave import RUBBER
 

@@ -22,7 +22,7 @@ from conftest import COPPER
 
 from impactfv.case import load_case
 from impactfv.compare import compare_case, pressure_roughness
-from impactfv.materials import Material
+from impactfv.physics.materials import Material
 
 MAT = COPPER
 L, W, GAP, V0, DIV = 0.01, 0.002, 4e-4, 50.0, (50, 10)

@@ -6,8 +6,8 @@ import pytest
 from conftest import COPPER, material_toml, run_cli
 
 from impactfv import InputError, load_case, run
-from impactfv.contact.laws import contact_state, releases, wall_state
-from impactfv.materials import Material
+from impactfv.physics.contact_laws import contact_state, releases, wall_state
+from impactfv.physics.materials import Material
 from impactfv.mesh.dual import median_dual
 from impactfv.validation.bars import bar_on_wall, pulse, two_bars
 

@@ -6,7 +6,7 @@ import pytest
 from conftest import COPPER
 
 from impactfv import load_case, run
-from impactfv.materials import Material
+from impactfv.physics.materials import Material
 from impactfv.mesh.dual import median_dual
 from impactfv.validation.bars import bar_on_wall, pulse, two_bars
 

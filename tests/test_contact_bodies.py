@@ -204,7 +204,7 @@ def test_blocks_of_different_materials(model):
     result = run_case([steel, al], [STEEL, ALUMINIUM],
                       {"bodies": ["steel", "al"], "model": model}, 3e-6)
     check_common(result)
-    from impactfv.materials import Material
+    from impactfv.physics.materials import Material
 
     za, zb = (Material.from_entry(m).p_impedance for m in (STEEL, ALUMINIUM))
     hist = result.history

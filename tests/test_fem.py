@@ -96,7 +96,7 @@ def test_patch_uniform_stretch_zero_interior_force(method):
     assert np.abs(f[interior]).max() < 1e-9 * scale
     # net force vanishes, and the energy is W(F) * area
     assert np.abs(f.sum(axis=0)).max() < 1e-9 * scale
-    from impactfv.materials import strain_energy_density
+    from impactfv.physics.materials import strain_energy_density
     w = strain_energy_density(F, np.array(RUBBERY_CU.table_row()))
     assert energy == pytest.approx(w * 2e-6, rel=1e-10)
 

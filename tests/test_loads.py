@@ -6,7 +6,7 @@ import pytest
 from conftest import COPPER_03, SOFT
 
 from impactfv import InputError, load_case, run
-from impactfv.materials import Material
+from impactfv.physics.materials import Material
 
 T = 1.0e6          # Pa, the traction of the pulled bar
 W = 0.001          # its width, m

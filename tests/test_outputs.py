@@ -14,7 +14,7 @@ from conftest import COPPER, run_cli
 
 from impactfv import load_case, run
 from impactfv.errors import InputError
-from impactfv.io.fields import FIELDS
+from impactfv.case import FIELDS
 from impactfv.io.writers import SnapshotWriter, cell_type
 from impactfv.pipeline import Schedule
 from impactfv.validation.bars import bar_on_wall, two_bars

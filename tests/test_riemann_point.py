@@ -4,8 +4,8 @@
 import numpy as np
 import pytest
 
-from impactfv.materials import LAW, N_PROPS, NEO_HOOKEAN
-from impactfv.scheme.riemann import (boundary_state, face_area_normal, face_traction,
+from impactfv.physics.materials import LAW, N_PROPS, NEO_HOOKEAN
+from impactfv.physics.riemann import (boundary_state, face_area_normal, face_traction,
                                      impedance_times, spatial_normal, upwind_traction,
                                      upwind_traction_area)
 
@@ -112,7 +112,7 @@ def test_smoothness_switch_factor():
     jump vanishes, rising continuously to 1 where the jump reaches SWITCH_RATIO times the
     nodal change, and 1 beyond it, also where the nodes agree but the reconstructions do not
     (a change of 0)."""
-    from impactfv.scheme.limiters import SWITCH_RATIO, switch_factor
+    from impactfv.physics.limiters import SWITCH_RATIO, switch_factor
 
     chi, change = 0.6, 2.0
     assert switch_factor(chi, 0.0, change**2) == pytest.approx(1.0 - chi)

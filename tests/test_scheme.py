@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from impactfv import load_case, run
-from impactfv.materials import first_piola
+from impactfv.physics.materials import first_piola
 from impactfv.mesh.dual import green_gauss_gradient, median_dual
 from impactfv.scheme.stepper import FVStepper
 
@@ -137,7 +137,7 @@ def test_last_stage_leaves_the_stress_of_the_new_state(block, order, geometric_f
     time loop and the last stage"): after a step sigma is the stress of the new F, and U
     holds the new v and that stress, to round-off; and the run equals one whose every step
     computes its stresses afresh (the carried stress forgotten before each step)."""
-    from impactfv.scheme import kernels as K
+    from impactfv.backends import cpu as K
     case = block(velocity=("40*sin(600*x)", "-30*x + 20*y"), end_time=1e-6, order=order,
                  geometric_flux=geometric_flux)
     carried, fresh = FVStepper(load_case(case)), FVStepper(load_case(case))
@@ -166,7 +166,7 @@ def test_umuscl_weight_is_chi_on_smooth_fields_and_zero_across_a_sawtooth():
     chi up to O(h^2) for a smooth one (u = x + x^3: the jump between the two extrapolations is
     1.5 h^3 against a change of about h); 0 across a sawtooth, whose gradients vanish; and
     half of chi where the jump is half the smoothness fraction of the change."""
-    from impactfv.scheme.limiters import SMOOTHNESS, blend_weight
+    from impactfv.physics.limiters import SMOOTHNESS, blend_weight
 
     chi = 0.6
 

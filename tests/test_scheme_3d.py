@@ -6,7 +6,7 @@ import pytest
 from conftest import COPPER
 
 from impactfv import load_case, run
-from impactfv.materials import first_piola
+from impactfv.physics.materials import first_piola
 from impactfv.mesh.dual import green_gauss_gradient, median_dual
 from impactfv.scheme.stepper import FVStepper
 from impactfv.validation.standing_wave import case_dict, errors
@@ -159,7 +159,7 @@ def test_stretch_bounds_enclose_the_smallest_stretch():
     min_stretch for deformations near and far from the identity, rotated or not, with equal
     eigenvalues included; lo is the value itself when the two larger stretches are equal
     (uniaxial compression), which is what lets the time step skip nearly every node."""
-    from impactfv.materials import min_stretch, min_stretch_bounds
+    from impactfv.physics.materials import min_stretch, min_stretch_bounds
     rng = np.random.default_rng(7)
     samples = [np.eye(3), np.diag([0.9, 1.0, 1.0]), np.diag([0.9, 0.9, 1.0]),
                np.diag([1.2, 0.7, 1.0]), 1.3 * np.eye(3), np.diag([0.005, 1.0, 1.0]),
@@ -194,7 +194,7 @@ def test_time_step_from_the_bounds_equals_every_node_evaluated():
     can give the minimum (kernels.smallest_time_step_of_candidates): the stable time step is
     the one of evaluating every node with the same kernel (upper bound infinite), to the last
     bit, step after step of a deforming, spinning block."""
-    from impactfv.scheme import kernels as K
+    from impactfv.backends import cpu as K
     case = box_case(divisions=(6, 5, 4), velocity=("30*sin(900*x)", "-800*z", "800*y + 20*x"),
                     end_time=1e-6)
     s = FVStepper(load_case(case))
@@ -213,7 +213,7 @@ def test_time_step_from_the_bounds_at_strongly_compressed_nodes():
     own): the bounds' slack covers the rounding of the trigonometric solution there (with a
     margin relative to lambda_min alone, such a state gave an infinite time step), and a
     continued run's first time step, computed afresh, is the same."""
-    from impactfv.scheme import kernels as K
+    from impactfv.backends import cpu as K
     s = FVStepper(load_case(box_case(divisions=(6, 5, 4))))
     m = s.disc
     rng = np.random.default_rng(11)

@@ -7,8 +7,7 @@ import pytest
 from conftest import COPPER
 
 from impactfv import load_case, run
-from impactfv.materials import Material, cauchy_stress
-from impactfv.scheme.kernels import point_fields
+from impactfv.physics.materials import Material, cauchy_stress
 from impactfv.scheme.stepper import FVStepper
 from impactfv.validation.bars import two_bars
 
@@ -107,15 +106,12 @@ def test_first_touch_is_monotone():
     face = np.flatnonzero((X[:, 0] == face_x) & (m.body_of_node == 0))
     middle = face[np.argmin(np.abs(X[face, 1] - np.median(X[face, 1])))]
     p_ref = M.p_impedance * v0
-    p = np.empty(m.n_nodes)
-    scratch = np.empty(m.n_nodes)
     velocity, traction, pressure, steps_in_contact = [], [], [], 0
     while steps_in_contact < 14:
         solver.step(solver.stable_dt())
         if solver.contact.state[middle] > 0:
             steps_in_contact += 1
-            point_fields(solver.F, m.node_material, m.material_table, p, scratch,
-                         scratch.copy(), solver.dim)
+            p = solver.point_data()["pressure"]
             velocity.append(solver.v[middle, 0])
             traction.append(-solver.contact.tstar_n[middle])
             pressure.append(p[middle])

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from impactfv import load_case
-from impactfv.materials import CP
+from impactfv.physics.materials import CP
 from impactfv.scheme.stepper import FVStepper
 
 MATERIAL = {"name": "c", "model": "linear_elastic", "density": 8930.0,
@@ -139,7 +139,7 @@ def prestressed_block(geometric, stretch, compatibility_time=0.0, dim=2):
     of the scheme). Returns its stepper, F and sigma."""
     from conftest import COPPER
 
-    from impactfv.materials import Material, cauchy_stress
+    from impactfv.physics.materials import Material, cauchy_stress
 
     props = np.array(Material.from_entry(COPPER).table_row())
 

@@ -6,7 +6,7 @@ import pytest
 from conftest import COPPER_03
 
 from impactfv import load_case, run
-from impactfv.materials import Material, cauchy_stress
+from impactfv.physics.materials import Material, cauchy_stress
 
 
 def sigma_11(F, M):

@@ -15,7 +15,6 @@ from matplotlib.tri import Triangulation  # noqa: E402
 from impactfv import load_case  # noqa: E402
 from impactfv.plot import FONT  # noqa: E402
 from impactfv.scheme.stepper import FVStepper  # noqa: E402
-from impactfv.scheme.kernels import point_fields  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 CASE = HERE.parents[1] / "examples" / "disc_wall.toml"
@@ -32,9 +31,7 @@ def main():
             dt = min(solver.stable_dt(), target - t)
             solver.step(dt)
             t += dt
-        p = np.empty(m.n_nodes)
-        point_fields(solver.F, m.node_material, m.material_table, p, np.empty(m.n_nodes),
-                     np.empty(m.n_nodes), solver.dim)
+        p = solver.point_data()["pressure"]
         snapshots.append((t, solver.x.copy(), p / 1e6))
     vmax = max(np.abs(s[2]).max() for s in snapshots)
     with plt.rc_context(FONT):

@@ -15,7 +15,6 @@ from matplotlib.tri import Triangulation  # noqa: E402
 
 from impactfv import load_case  # noqa: E402
 from impactfv.plot import FONT  # noqa: E402
-from impactfv.scheme.kernels import point_fields  # noqa: E402
 from impactfv.scheme.stepper import FVStepper  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
@@ -36,9 +35,7 @@ def main():
             t += dt
             times.append(t)
             velocities.append([solver.v[b.start:b.stop, 0].mean() for b in m.bodies])
-        p = np.empty(m.n_nodes)
-        point_fields(solver.F, m.node_material, m.material_table, p, np.empty(m.n_nodes),
-                     np.empty(m.n_nodes), solver.dim)
+        p = solver.point_data()["pressure"]
         snapshots.append((t, solver.x.copy(), p / 1e6))
     vmax = 0.5 * max(np.abs(s[2]).max() for s in snapshots)
     velocities = np.array(velocities)

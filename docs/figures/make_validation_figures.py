@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from impactfv import load_case, run  # noqa: E402
-from impactfv.materials import Material  # noqa: E402
+from impactfv.physics.materials import Material  # noqa: E402
 from impactfv.plot import FONT  # noqa: E402
 from impactfv.validation.bars import SEED_MATERIAL, bar_on_wall, pulse, two_bars  # noqa: E402
 from impactfv.validation.standing_wave import case_dict, errors  # noqa: E402

@@ -17,10 +17,28 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from .errors import InputError
 from .expr import compile_expression
-from .materials import Material
+from .physics.materials import Material
 from .mesh.generators import DIAGONAL_PATTERNS, annulus, box, disc, rectangle
 from .mesh.reader import read_mesh
 from .mesh.core import Mesh, validate_and_orient
+
+#: the point fields of the output frames (docs/case-file.md lists the same)
+FIELDS = {
+    "velocity": "velocity, m/s (3 components)",
+    "displacement": "x - X, m (3 components; reference points + displacement = deformed)",
+    "pressure": "-tr(sigma)/3, Pa (compression positive)",
+    "von_mises": "von Mises stress, Pa",
+    "stress": "Cauchy stress, Pa (6 components xx, yy, zz, xy, yz, xz)",
+    "J": "det F",
+    "body": "index of the body in the case (integer)",
+    "contact_status": "0 open, 1 stick, 2 slip (integer; FV, cases with contact)",
+    "contact_pressure": "normal contact traction, Pa (compression positive; FV, cases with "
+                        "contact)",
+}
+
+#: fields of the frames written as integers
+INTEGER_FIELDS = ("body", "contact_status")
+
 
 LIMITERS = ("none", "barth_jespersen", "venkatakrishnan")
 METHODS = ("fv", "fem-t3", "fem-q4md")
@@ -374,7 +392,6 @@ class OutputSpec(_Strict):
     @field_validator("fields")
     @classmethod
     def _known_fields(cls, value):
-        from .io.fields import FIELDS
         for name in value or ():
             if name not in FIELDS:
                 close = difflib.get_close_matches(name, list(FIELDS), n=1)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from .case import Case
-from .materials import CP
+from .physics.materials import CP
 from .scheme.discretisation import discretise
 
 def check_report(case: Case) -> str:

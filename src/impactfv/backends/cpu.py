@@ -1,164 +1,479 @@
-"""The CPU backend: numba compilation of backend-free point functions, and small local arrays.
+"""Compiled loops of one Runge-Kutta stage of the p-F scheme (docs/theory.md).
 
-Point functions (material laws, Riemann states, limiters) are plain Python on scalars and
-small arrays; they never allocate and read the dimension from the shapes of their arrays.
-Kernels, the loops around them, copy a node's or an edge's data into local arrays from
-:func:`local_vector` / :func:`local_matrix` and hand those to the point functions: they live
-on the stack, so LLVM keeps them in registers, and their shape is a compile-time constant, so
-the loops inside the point functions unroll (a heap array per block cost 25% in the flux
-loop; passing views of the global arrays, whose shapes are only known at run time, cost 40%
-in the stress loop; local copies cost 8-12% against hand-written 2D scalar code). A GPU
-backend would hand the same point functions ``cuda.local.array`` instead.
+Semi-discrete equations on the median dual, per node a (seed eq. 9)::
 
-Kernels are dimension-generic: they take ``dim``, a tuple of ``d`` zeros (see
-:func:`dim_tag`), and use ``len(dim)`` as the space dimension. The length of a tuple is part
-of its numba type, so each dimension gets its own compiled (and cached) specialisation in
-which ``d`` is a compile-time constant and the loops over components unroll; with ``d`` read
-from an array shape at run time the flux loop ran 2.4 times slower.
+    Omega_a rho_a dv_a/dt = sum_b t_ab |C_ab| + sum_gamma t_gamma |C_gamma|
+    Omega_a dF_a/dt      = sum_b v_ab (x) C_ab + sum_gamma v_gamma (x) C_gamma
+    dx_a/dt              = v_a
+
+The physics lives in point functions (scheme.riemann, scheme.limiters, scheme.time,
+materials); these loops only gather their inputs and scatter their results. Every kernel
+takes ``dim``, a tuple of d zeros (backends.cpu.dim_tag), so that the dimension is a
+compile-time constant, and hands the point functions local copies (backends.cpu). Loops over nodes are parallel; the edge loops run by node block
+(Discretisation.edge_offsets): blocks in parallel, the edges joining two blocks afterwards.
 """
 
-import contextlib
-import os
-import types
+import numpy as np
+from numba import njit, prange
 
-import numba.core.config
-from numba import carray, njit
-from numba import types as nbtypes
-from numba.core import cgutils
-from numba.extending import intrinsic
+from ..physics import materials as M
+from ..compiled import (KERNEL_FASTMATH, load_matrix, load_vector, local_components,
+                            local_matrix, local_rows, local_scratch, local_vector, point,
+                            store_matrix)
+from ..physics.tensors import determinant as _determinant
+from ..physics.tensors import symmetric_index as _symmetric_index
+from ..physics import limiters as L
+from ..physics import runge_kutta as T
+from ..scheme import bodies as B
 
-#: largest space dimension; local arrays are sized for it
-MAX_DIM = 3
+cauchy_stress = point(M.cauchy_stress)
+# cold paths (on-demand monitors, output fields): called, not inlined (backends.cpu.point)
+strain_energy_density = point(M.strain_energy_density, inline=False)
+cauchy_stress_and_energy = point(M.cauchy_stress_and_energy)
+pressure_and_von_mises = point(M.pressure_and_von_mises, inline=False)
+min_stretch = point(M.min_stretch)
+min_stretch_bounds = point(M.min_stretch_bounds)
+determinant = point(_determinant)
+strain_power = point(M.strain_power)
+symmetric_index = point(_symmetric_index)
+heun_energy_excess = point(T.heun_energy_excess)
+edge_flux = point(B.edge_flux)
+boundary_face_flux = point(B.boundary_face_flux)
+node_gradient = point(B.node_gradient)
+node_update = point(B.node_update)
+relaxation_change = point(B.relaxation_change)
+node_energy_rate = point(B.node_energy_rate)
+stage_change = point(B.stage_change)
 
-#: LLVM flags of the scheme's kernels: only contraction of a * b + c into one fused
-#: multiply-add (rounded once instead of twice) where the CPU has FMA; no reassociation,
-#: no assumptions about NaN or infinity, so the sums keep their order and a bad state is
-#: still seen. It makes the gradient and flux loops faster (docs/performance.md); results
-#: change at round-off only (a GPU contracts the same way by default). numba's cache does
-#: not see a change of these flags: clear the __pycache__ folders after changing them.
-KERNEL_FASTMATH = {"contract"}
-
-
-@contextlib.contextmanager
-def superword_vectorization(enabled: bool):
-    """Kernels compiled inside this block use LLVM's superword-level-parallelism (SLP)
-    vectorizer if ``enabled``; numba leaves it off by default (numba.core.config
-    SLP_VECTORIZE, read when a kernel is compiled, i.e. at its first call). The 3D
-    gradient loop over nine fields runs 2.3 times faster with it; the 2D one (five fields)
-    runs 15% slower (docs/performance.md), so the stepper enables it for 3D runs only.
-    NUMBA_SLP_VECTORIZE set in the environment takes precedence. A kernel already compiled
-    (or loaded from numba's cache, which does not record the flag) keeps its code: results
-    are the same either way."""
-    if "NUMBA_SLP_VECTORIZE" in os.environ:
-        yield
-        return
-    previous = numba.core.config.SLP_VECTORIZE
-    numba.core.config.SLP_VECTORIZE = int(enabled)
-    try:
-        yield
-    finally:
-        numba.core.config.SLP_VECTORIZE = previous
+RHO, CP, CS = M.RHO, M.CP, M.CS
 
 
-def dim_tag(dim: int) -> tuple:
-    """The ``dim`` argument of the kernels: a tuple of ``dim`` zeros."""
-    return (0,) * int(dim)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def compute_stress(F, node_material, table, sigma, dim):
+    """Cauchy stress sigma_a = sigma(F_a) at every node (the material law)."""
+    d = len(dim)
+    for a in prange(F.shape[0]):
+        Fa = local_matrix(d)
+        sa = local_matrix(d)
+        load_matrix(F, a, Fa)
+        cauchy_stress(Fa, table[node_material[a]], sa)
+        store_matrix(sa, sigma, a)
 
 
-_compiled = {}
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def stress_and_fields(F, v, node_material, table, sigma, U, dim):
+    """:func:`compute_stress` and :func:`pack_velocity_and_stress` in one pass: sigma_a,
+    and U[a] = (v_a, the independent components of sigma_a) while sigma_a is in registers."""
+    d = len(dim)
+    for a in prange(F.shape[0]):
+        Fa = local_matrix(d)
+        sa = local_matrix(d)
+        load_matrix(F, a, Fa)
+        cauchy_stress(Fa, table[node_material[a]], sa)
+        store_matrix(sa, sigma, a)
+        for i in range(d):
+            U[a, i] = v[a, i]
+            for j in range(i, d):
+                U[a, d + symmetric_index(i, j, d)] = sa[i, j]
 
 
-def point(f, inline: bool = True):
-    """The numba-compiled copy of point function ``f`` (compiled once, cached on disk).
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def pack_velocity_and_stress(v, sigma, U, dim):
+    """U[a] = (v_a, the independent components of sigma_a): the fields reconstructed to the
+    faces."""
+    d = len(dim)
+    for a in prange(v.shape[0]):
+        for i in range(d):
+            U[a, i] = v[a, i]
+            for j in range(i, d):
+                U[a, d + symmetric_index(i, j, d)] = sigma[a, i, j]
 
-    A point function may call other point functions (of its own module or another impactfv
-    module); its copy gets a globals table in which those names refer to their compiled
-    copies, so the pure modules themselves are never touched.
 
-    ``inline``: numba inlines the copy into its callers (the default), where the loops
-    over components unroll and the local arrays stay in registers; numba then types and
-    lowers its body again at every call site. With False it is a function of its own,
-    compiled once and called: for kernels' cold paths (output fields, on-demand monitors),
-    where an inlined material law costs seconds of compilation and a call costs nothing
-    that matters. On a hot path a call costs about 50 ns (the arrays are passed field by
-    field): the node loops ran twice as slow (docs/performance.md, "Compilation").
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def limited_gradient(U, dual, closure, kind, grad, components, x, F, mismatch,
+                     with_positions, dim):
+    """The limited Green-Gauss gradient grad[a, i, J] of every field i of U (n, m) at every
+    node (scheme.bodies.node_gradient), with ``with_positions`` also the mismatch
+    D = F - G(x) of the compatibility relaxation. ``components`` is a tuple of m zeros (a
+    compile-time m, like ``dim``); ``dual`` the tuple (node_edge_start, node_neighbour,
+    node_C, node_half, bface_start, bface_others, bface_C, volume) of
+    Discretisation.gradient_dual. A gather over nodes: each node reads its neighbours once
+    and writes only its own rows (no race, no edge blocks); its sums stay on the stack."""
+    d = len(dim)
+    m = len(components)
+    own, denominator = closure
+    # one division per call, not per face (1/8 is exact in 3D)
+    inverse_denominator = 1.0 / denominator
+    for a in prange(U.shape[0]):
+        scratch = (local_scratch(m * d), local_components(m), local_components(m),
+                   local_components(m), local_matrix(d), local_components(m),
+                   local_components(m), local_components(m))
+        node_gradient(a, U, x, F, dual, own, inverse_denominator, kind, with_positions,
+                      scratch, grad, mismatch)
+
+
+@njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
+def _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                     edge_offsets, options, contact_state, force, dF, d):
+    """The edges of block k (scheme.bodies.edge_flux), each scattered to its two nodes."""
+    Fe = local_matrix(d)
+    Sa = local_matrix(d)
+    Sb = local_matrix(d)
+    work = local_rows(B.EDGE_WORK_ROWS, d)
+    f = work[B.EDGE_FORCE]
+    u = work[B.EDGE_VELOCITY]
+    # a group's edges come grouped by their first node (Discretisation.partition_edges;
+    # the local parts of MPI keep the grouping), so each node's own sums stay in registers
+    # while its edges are walked: loaded once and stored once, in the same order of
+    # additions as one edge at a time (and correct for any order: a run of one first node
+    # never writes that node's rows, and each run reloads them)
+    force_a = local_vector(d)
+    dF_a = local_matrix(d)
+    current = -1
+    for e in range(edge_offsets[k], edge_offsets[k + 1]):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        if a != current:
+            if current >= 0:
+                _store_node_sums(force_a, dF_a, force, dF, current, d)
+            for i in range(d):
+                force_a[i] = force[a, i]
+                for J in range(d):
+                    dF_a[i, J] = dF[a, i, J]
+            current = a
+        edge_flux(e, a, b, v, F, sigma, grad, table[node_material[a]], C, C_len, half,
+                  options, contact_state, Fe, Sa, Sb, work)
+        for i in range(d):
+            force_a[i] += f[i]
+            force[b, i] -= f[i]
+        for i in range(d):
+            for J in range(d):
+                dF_a[i, J] += u[i] * C[e, J]
+                dF[b, i, J] -= u[i] * C[e, J]
+    if current >= 0:
+        _store_node_sums(force_a, dF_a, force, dF, current, d)
+
+
+@njit(cache=True, inline="always")
+def _store_node_sums(force_a, dF_a, force, dF, a, d):
+    for i in range(d):
+        force[a, i] = force_a[i]
+        for J in range(d):
+            dF[a, i, J] = dF_a[i, J]
+
+
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def assemble_rates(v, F, sigma, grad, node_material, table, edge_mesh, face_mesh, boundary,
+                   options, contact_state, bface_contact_weight, force, dF, power, bc_force,
+                   dim):
+    """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt of every
+    interior edge (scheme.bodies.edge_flux) and dual boundary face
+    (scheme.bodies.boundary_face_flux); into power[0] the power of the boundary tractions,
+    sum over the dual boundary faces of t^C . v^C |C| (zero on free faces, the work of a
+    clamp or of a prescribed traction elsewhere); into bc_force (nbc, d) the force of each
+    boundary condition's faces on the body.
+
+    edge_mesh: (edges, C, C_len, half, edge_offsets); face_mesh: (bface_node, bface_others,
+    bface_C, bface_bc, closure); boundary: (bc_fixed, prescribed_velocity,
+    prescribed_traction, tangential_correction); options: the edge flux's
+    (scheme.bodies). A dual boundary face takes its boundary flux for the part of the face
+    and of the step it is not in contact (1 - bface_contact_weight); the contact stage adds
+    the rest."""
+    d = len(dim)
+    edges, C, C_len, half, edge_offsets = edge_mesh
+    for a in prange(force.shape[0]):
+        for i in range(d):
+            force[a, i] = 0.0
+            for J in range(d):
+                dF[a, i, J] = 0.0
+    nb = edge_offsets.shape[0] - 2
+    for k in prange(nb):
+        _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                         edge_offsets, options, contact_state, force, dF, d)
+    _interior_fluxes(nb, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
+                     edge_offsets, options, contact_state, force, dF, d)
+    power[0] = _boundary_fluxes(v, F, sigma, node_material, table, face_mesh, boundary,
+                                bface_contact_weight, force, dF, bc_force, d)
+
+
+@njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
+def _boundary_fluxes(v, F, sigma, node_material, table, face_mesh, boundary,
+                     bface_contact_weight, force, dF, bc_force, d):
+    """The dual boundary faces, in order (serial: few faces, each node's faces scattered to
+    it); returns their power."""
+    bface_node, bface_others, bface_C, bface_bc, closure = face_mesh
+    bc_fixed, prescribed_velocity, prescribed_traction, tangential_correction = boundary
+    own, denominator = closure
+    inverse_denominator = 1.0 / denominator
+    Fi = local_matrix(d)
+    Si = local_matrix(d)
+    Z = local_matrix(d)
+    work = local_rows(B.FACE_WORK_ROWS, d)
+    tC = work[B.FACE_TRACTION]
+    vC = work[B.FACE_STATE_VELOCITY]
+    u = work[B.FACE_VELOCITY]
+    boundary_power = 0.0
+    for k in range(bc_force.shape[0]):
+        for i in range(d):
+            bc_force[k, i] = 0.0
+    for h in range(bface_node.shape[0]):
+        free = 1.0 - bface_contact_weight[h]
+        if free == 0.0:
+            continue
+        bc = bface_bc[h]
+        a = bface_node[h]
+        ln = boundary_face_flux(h, a, v, F, sigma, table[node_material[a]], bface_others,
+                                bface_C, own, inverse_denominator, bc_fixed, bc,
+                                prescribed_velocity, prescribed_traction,
+                                tangential_correction, Fi, Si, Z, work)
+        for i in range(d):
+            force[a, i] += free * tC[i] * ln
+            bc_force[bc, i] += free * tC[i] * ln
+            for J in range(d):
+                dF[a, i, J] += free * u[i] * bface_C[h, J]
+            boundary_power += free * tC[i] * vC[i] * ln
+    return boundary_power
+
+
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def relax_towards_positions(D, weight, owned, node_edge_start, node_neighbour, dF, dim):
+    """The compatibility relaxation (scheme.bodies.relaxation_change) at the nodes
+    a < owned, D = F - G (n, d, d) written by limited_gradient."""
+    d = len(dim)
+    for a in prange(owned):
+        relaxation_change(a, D, weight, node_edge_start, node_neighbour, dF, local_matrix(d))
+
+
+@njit(cache=True, inline="always", fastmath=KERNEL_FASTMATH)
+def _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, d):
+    return node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, local_matrix(d),
+                            local_matrix(d), local_matrix(d))
+
+
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def rk_update(alpha, dt, start, state, rates, contact_state, contact_xdot, node_material,
+              table, held, save_start, dim):
+    """One Runge-Kutta stage of every node (scheme.bodies.node_update). With ``save_start``
+    (the first stage) the state it starts from is first copied into ``start`` = (v0, F0, x0),
+    in the same pass. ``state``: (v, F, x); ``rates``: (force, dF, sigma), sigma the Cauchy
+    stress of the stage's state; ``held``: (volume, fixed_mask, fixed_value). Returns the
+    rate of the nodes' kinetic and strain energy in the stage's state
+    (scheme.bodies.node_energy_rate), summed while the node is read for its update."""
+    d = len(dim)
+    v0, F0, x0 = start
+    v, F, x = state
+    force, dF, sigma = rates
+    volume, fixed_mask, fixed_value = held
+    total = 0.0
+    for a in prange(v.shape[0]):
+        props = table[node_material[a]]
+        total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, d)
+        if save_start:
+            for i in range(d):
+                x0[a, i] = x[a, i]
+                v0[a, i] = v[a, i]
+                for J in range(d):
+                    F0[a, i, J] = F[a, i, J]
+        node_update(a, alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state[a] != 0,
+                    contact_xdot, props, volume, fixed_mask, fixed_value, local_matrix(d))
+    return total
+
+
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def rk_update_last(alpha, dt, start, state, rates, contact_state, contact_xdot, node_material,
+                   table, held, node_length, body_start, with_monitors, out, pack, U, bound,
+                   dim):
+    """The last Runge-Kutta stage (as :func:`rk_update`) fused with what the time loop needs
+    of the new state, computed while it is still in registers: the stable time step of the
+    next step (as :func:`stable_time_step`), the first node with a non-finite state or
+    J <= 0 (as :func:`state_is_bad`), with ``with_monitors`` the energies and momentum
+    of each body into ``out`` (as :func:`monitors`, summed in the same order), and the
+    Cauchy stress of the new state into sigma (as :func:`compute_stress`, for the next
+    step's first stage), with ``pack`` also the packed fields U as :func:`stress_and_fields`
+    writes them. The stress and the strain energy share one power of J
+    (materials.cauchy_stress_and_energy). sigma is read (the stage's stress, for the energy
+    rate) before the node's new stress is written.
+
+    In 3D the smallest principal stretch (the trigonometric solution of a cubic) is not
+    evaluated here: the first value returned is then the smallest of upper bounds of
+    h_a lambda_min,a / c_p,a, and ``bound`` receives each node's lower bound;
+    :func:`smallest_time_step_of_candidates` completes the time step from the few nodes
+    whose lower bound does not exceed that (materials.min_stretch_bounds).
+
+    Returns (min over nodes of h_a lambda_min,a / c_p,a, index of the first bad node or -1,
+    the energy rate of the stage's state as :func:`rk_update` returns it, the energy the
+    two-stage step adds, physics.runge_kutta.heun_energy_excess summed).
     """
-    key = (f, inline)
-    if key in _compiled:
-        return _compiled[key]
-    table = dict(f.__globals__)
-    clone = types.FunctionType(f.__code__, table, f.__name__, f.__defaults__, f.__closure__)
-    clone.__module__ = f.__module__
-    clone.__qualname__ = f.__qualname__
-    compiled = _compiled[key] = njit(cache=True, inline="always" if inline else "never")(clone)
-    for name in f.__code__.co_names:
-        g = table.get(name)
-        if isinstance(g, types.FunctionType) and g.__module__.startswith("impactfv."):
-            table[name] = point(g)
-    return compiled
+    d = len(dim)
+    v0, F0, x0 = start
+    v, F, x = state
+    force, dF, sigma = rates
+    volume, fixed_mask, fixed_value = held
+    n = v.shape[0]
+    smallest = np.inf
+    first_bad = n
+    total = 0.0
+    integration = 0.0
+    inv_dt = 1.0 / dt
+    for k in range(body_start.shape[0] - 1):
+        kinetic = 0.0
+        strain = 0.0
+        p0 = 0.0
+        p1 = 0.0
+        p2 = 0.0
+        for a in prange(body_start[k], body_start[k + 1]):
+            props = table[node_material[a]]
+            total += _node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, d)
+            change = local_matrix(d)
+            midway = local_matrix(d)
+            dv2 = stage_change(a, inv_dt, v0, F0, v, F, force, dF, props, volume, fixed_mask,
+                               change, midway)
+            integration += heun_energy_excess(dt, props, volume[a], dv2, change, midway)
+            Fa = local_matrix(d)
+            finite = node_update(a, alpha, dt, v0, F0, x0, v, F, x, force, dF,
+                                 contact_state[a] != 0, contact_xdot, props, volume,
+                                 fixed_mask, fixed_value, Fa)
+            jac = determinant(Fa)
+            if not (finite and np.isfinite(jac) and jac > 0.0):
+                first_bad = min(first_bad, a)
+            if d == 3:
+                lower, upper = min_stretch_bounds(Fa)
+                bound[a] = node_length[a] * lower / props[CP]
+                smallest = min(smallest, node_length[a] * upper / props[CP])
+            else:
+                smallest = min(smallest, node_length[a] * min_stretch(Fa) / props[CP])
+            sa = local_matrix(d)
+            energy = cauchy_stress_and_energy(Fa, props, sa)
+            store_matrix(sa, sigma, a)
+            if pack:
+                for i in range(d):
+                    U[a, i] = v[a, i]
+                    for j in range(i, d):
+                        U[a, d + symmetric_index(i, j, d)] = sa[i, j]
+            if with_monitors:
+                mass = props[RHO] * volume[a]
+                v2 = 0.0
+                for i in range(d):
+                    v2 += v[a, i] * v[a, i]
+                kinetic += 0.5 * mass * v2
+                strain += volume[a] * energy
+                p0 += mass * v[a, 0]
+                p1 += mass * v[a, 1]
+                if d == 3:
+                    p2 += mass * v[a, d - 1]
+        if with_monitors:
+            out[k, 0] = kinetic
+            out[k, 1] = strain
+            out[k, 2] = p0
+            out[k, 3] = p1
+            if d == 3:
+                out[k, 4] = p2
+    return smallest, (first_bad if first_bad < n else -1), total, integration
 
 
-@intrinsic
-def _stack_buffer(typingctx, size):
-    """A float64 buffer of ``size`` (a literal int) entries on the stack of the caller."""
-    if not isinstance(size, nbtypes.IntegerLiteral):
-        return None
-    count = size.literal_value
-
-    def codegen(context, builder, signature, args):
-        return cgutils.alloca_once(builder, context.get_value_type(nbtypes.float64),
-                                   size=count)
-    return nbtypes.CPointer(nbtypes.float64)(size), codegen
-
-
-@njit(inline="always")
-def local_vector(d):
-    """A scratch vector of length d (d <= MAX_DIM) on the stack."""
-    return carray(_stack_buffer(3), d)
-
-
-@njit(inline="always")
-def local_matrix(d):
-    """A scratch d x d matrix (d <= MAX_DIM) on the stack."""
-    return carray(_stack_buffer(9), (d, d))
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def smallest_time_step_of_candidates(F, node_material, table, node_length, bound, upper, dim):
+    """min over nodes of h_a lambda_min,a / c_p,a (as :func:`stable_time_step`), given a
+    lower bound of each node's value (``bound``) and an upper bound of the minimum
+    (``upper``, the smallest of the nodes' upper bounds; :func:`rk_update_last`): only the
+    nodes whose lower bound does not exceed it can give the minimum, and only they are
+    evaluated. The same minimum, to the last bit, as evaluating every node."""
+    d = len(dim)
+    smallest = np.inf
+    for a in prange(F.shape[0]):
+        if bound[a] <= upper:
+            Fa = local_matrix(d)
+            load_matrix(F, a, Fa)
+            smallest = min(smallest, node_length[a] * min_stretch(Fa)
+                           / table[node_material[a], CP])
+    return smallest
 
 
-@njit(inline="always")
-def local_components(m):
-    """A scratch vector of m <= 16 entries on the stack (one per reconstructed field)."""
-    return carray(_stack_buffer(16), m)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def stable_time_step(F, node_material, table, node_length, dim):
+    """min over nodes of h_a lambda_min,a / c_p,a; multiply by the CFL number."""
+    d = len(dim)
+    n = F.shape[0]
+    local = np.empty(n)
+    for a in prange(n):
+        Fa = local_matrix(d)
+        load_matrix(F, a, Fa)
+        local[a] = node_length[a] * min_stretch(Fa) / table[node_material[a], CP]
+    return local.min()
 
 
-@njit(inline="always")
-def local_rows(k, d):
-    """k scratch vectors of length d (k d <= 48) on the stack, as the rows of one array."""
-    return carray(_stack_buffer(48), (k, d))
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def monitors(v, F, node_material, table, volume, body_start, out, dim):
+    """Per body k (nodes body_start[k]:body_start[k+1]), into row k of ``out``: kinetic
+    energy, strain energy and the d components of linear momentum."""
+    d = len(dim)
+    for k in range(body_start.shape[0] - 1):
+        kinetic = 0.0
+        strain = 0.0
+        p0 = 0.0
+        p1 = 0.0
+        p2 = 0.0
+        for a in prange(body_start[k], body_start[k + 1]):
+            props = table[node_material[a]]
+            mass = props[RHO] * volume[a]
+            v2 = 0.0
+            for i in range(d):
+                v2 += v[a, i] * v[a, i]
+            kinetic += 0.5 * mass * v2
+            Fa = local_matrix(d)
+            load_matrix(F, a, Fa)
+            strain += volume[a] * strain_energy_density(Fa, props)
+            p0 += mass * v[a, 0]
+            p1 += mass * v[a, 1]
+            if d == 3:
+                p2 += mass * v[a, d - 1]
+        out[k, 0] = kinetic
+        out[k, 1] = strain
+        out[k, 2] = p0
+        out[k, 3] = p1
+        if d == 3:
+            out[k, 4] = p2
 
 
-@njit(inline="always")
-def local_scratch(k):
-    """A flat scratch vector of k <= 48 entries on the stack."""
-    return carray(_stack_buffer(48), k)
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def state_is_bad(v, F, dim):
+    """Index of the first node with a non-finite state or J <= 0, or -1."""
+    d = len(dim)
+    n = v.shape[0]
+    bad = np.full(n, False)
+    for a in prange(n):
+        Fa = local_matrix(d)
+        load_matrix(F, a, Fa)
+        J = determinant(Fa)
+        ok = np.isfinite(J) and J > 0.0
+        for i in range(d):
+            ok = ok and np.isfinite(v[a, i])
+        bad[a] = not ok
+    for a in range(n):
+        if bad[a]:
+            return a
+    return -1
 
 
-@njit(inline="always")
-def load_vector(u, a, out):
-    """out = u[a] (out a local vector)."""
-    for i in range(out.shape[0]):
-        out[i] = u[a, i]
-
-
-@njit(inline="always")
-def load_matrix(F, a, out):
-    """out = F[a] (out a local matrix)."""
-    for i in range(out.shape[0]):
-        for J in range(out.shape[1]):
-            out[i, J] = F[a, i, J]
-
-
-@njit(inline="always")
-def store_matrix(out, F, a):
-    """F[a] = out (out a local matrix)."""
-    for i in range(out.shape[0]):
-        for J in range(out.shape[1]):
-            F[a, i, J] = out[i, J]
+@njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
+def point_fields(F, node_material, table, pressure, von_mises, jac, stress, dim):
+    """The output frames' point fields of every node: pressure (compression positive), von
+    Mises stress, J, and the 3 x 3 Cauchy stress (n, 3, 3), in plane strain with its
+    out-of-plane normal stress sigma_zz."""
+    d = len(dim)
+    for a in prange(F.shape[0]):
+        Fa = local_matrix(d)
+        sigma = local_matrix(d)
+        load_matrix(F, a, Fa)
+        p, vm, szz = pressure_and_von_mises(Fa, table[node_material[a]], sigma)
+        pressure[a] = p
+        von_mises[a] = vm
+        jac[a] = determinant(Fa)
+        for i in range(3):
+            for j in range(3):
+                stress[a, i, j] = 0.0
+        for i in range(d):
+            for j in range(d):
+                stress[a, i, j] = sigma[i, j]
+        if d == 2:
+            stress[a, 2, 2] = szz

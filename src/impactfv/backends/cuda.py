@@ -32,15 +32,13 @@ import types
 
 import numpy as np
 
-from ..scheme.limiters import NONE as NO_LIMITER
-from ..scheme.time import STAGES
+from ..compiled import device
+from ..physics.limiters import NONE as NO_LIMITER
+from ..physics.runge_kutta import STAGES
 
 #: threads per block of every kernel (a power of two: the block sums halve it); the simulator
 #: runs every thread of a block as a Python thread, so it gets small blocks
 THREADS = 16 if os.environ.get("NUMBA_ENABLE_CUDASIM") == "1" else 128
-
-_compiled = {}
-
 
 def problem(case) -> str | None:
     """Why ``case`` cannot run with backend "cuda" here (one line), or None."""
@@ -54,24 +52,6 @@ def problem(case) -> str | None:
     if case.run.method != "fv":
         return f'run.backend = "cuda" runs the FV method only, not {case.run.method!r}'
     return None
-
-
-def device(f):
-    """The CUDA device-function copy of point function ``f`` (compiled once)."""
-    if f in _compiled:
-        return _compiled[f]
-    from numba import cuda as _cuda
-
-    table = dict(f.__globals__)
-    clone = types.FunctionType(f.__code__, table, f.__name__, f.__defaults__, f.__closure__)
-    clone.__module__ = f.__module__
-    clone.__qualname__ = f.__qualname__
-    compiled = _compiled[f] = _cuda.jit(device=True)(clone)
-    for name in f.__code__.co_names:
-        g = table.get(name)
-        if isinstance(g, types.FunctionType) and g.__module__.startswith("impactfv."):
-            table[name] = device(g)
-    return compiled
 
 
 _kernels = {}
@@ -97,12 +77,12 @@ def _make_kernels(d, m, kind):
     from numba import float64
     cuda = _cuda
 
-    from .. import materials as M
-    from ..scheme import limiters as L
-    from ..scheme import riemann as R
-    from ..scheme import time as T
-    from ..tensors import determinant as _determinant
-    from ..tensors import symmetric_index as _symmetric_index
+    from ..physics import materials as M
+    from ..physics import limiters as L
+    from ..physics import riemann as R
+    from ..physics import runge_kutta as T
+    from ..physics.tensors import determinant as _determinant
+    from ..physics.tensors import symmetric_index as _symmetric_index
 
     cauchy_stress = device(M.cauchy_stress)
     strain_energy_density = device(M.strain_energy_density)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backends.cpu import dim_tag
+from ..compiled import dim_tag
 from ..geometry.bins import build_bins
 from ..geometry.surfaces import surface_facets
 from ..mesh.edges import facet_index

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..backends.cpu import local_vector
+from ..compiled import local_vector
 from ..geometry.bins import bin_of
 from ..geometry.facets import (MAX_POLYGON, clip_polygon, closest_point, dual_face_polygon,
                                dual_face_vector, facet_area_vector, plane_frame, polygon_area,

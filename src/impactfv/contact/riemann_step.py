@@ -20,13 +20,13 @@ import math
 
 from numba import njit
 
-from .. import materials as M
-from ..backends.cpu import load_vector, local_matrix, local_vector, point
+from ..physics import materials as M
+from ..compiled import load_vector, local_matrix, local_vector, point
 from ..geometry.facets import dual_face_vector
 from ..mesh.dual import CLOSURE
-from ..scheme import riemann as R
-from ..tensors import symmetric_index as _symmetric_index
-from . import laws as CL
+from ..physics import riemann as R
+from ..physics.tensors import symmetric_index as _symmetric_index
+from ..physics import contact_laws as CL
 from .overlap import wall_faces
 
 contact_state = point(CL.contact_state)

@@ -9,7 +9,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ..backends.cpu import local_vector
+from ..compiled import local_vector
 from ..geometry.bins import bin_of
 from ..geometry.facets import closest_point, facet_area_vector
 

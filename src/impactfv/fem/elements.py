@@ -8,7 +8,7 @@ All kernels work on global (all-bodies concatenated) arrays:
 * ``cells (M,k)`` element connectivity, k=3 (T3) or 4 (Q4), ``grads (M,ngp,k,2)`` reference
   shape-function gradients at the integration points, ``wj (M,ngp)`` weight * reference
   Jacobian, ``area0 (M,)`` reference element area, ``emat (M,)`` material row, ``mtab`` the
-  material table of :mod:`impactfv.materials`.
+  material table of :mod:`impactfv.physics.materials`.
 """
 
 from __future__ import annotations
@@ -18,8 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
-from .. import materials as M
-from ..backends.cpu import local_matrix, point
+from ..physics import materials as M
+from ..compiled import local_matrix, point
 
 _first_piola = point(M.first_piola)
 _energy = point(M.strain_energy_density)
@@ -182,7 +182,7 @@ def element_pressure_von_mises(x, cells, grads, wj, area0, emat, mtab, pe, vme):
             Fm[0, 1] = f12
             Fm[1, 0] = f21
             Fm[1, 1] = f22
-            p, vm = _pressure_and_von_mises(Fm, props, sigma)
+            p, vm, _ = _pressure_and_von_mises(Fm, props, sigma)
             w = wj[e, g]
             ps += w * p
             vs += w * vm

@@ -89,7 +89,7 @@ import numpy as np
 
 from ..errors import InputError, SimulationError
 from ..geometry.surfaces import surface_facets
-from ..materials import N_PROPS, Material
+from ..physics.materials import N_PROPS, Material
 from ..mesh.core import Mesh
 from ..mesh.edges import boundary_facets, unique_edges
 from ..mesh.generators import quads_to_triangles, rectangle_quads

@@ -12,6 +12,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from ..case import INTEGER_FIELDS
+
 
 def _follow_umask(path):
     """Give a finished temporary file the mode a plain open() would have (0666 minus the
@@ -92,7 +94,6 @@ def frame_arrays(point_data: dict, dim: int, fields=None) -> dict:
     """The point data of a frame as ParaView reads it: vectors (n, d) with 3 components,
     3 x 3 tensors as 6 (xx, yy, zz, xy, yz, xz), integer fields as int32; only ``fields``
     (None: all)."""
-    from .fields import INTEGER_FIELDS, vtk_tensor
 
     out = {}
     for key, value in point_data.items():
@@ -206,3 +207,11 @@ class SnapshotWriter:
                                        "normal": _three_components(normals, dim),
                                        "wall": np.concatenate(wall)})
         _write_vtu(self.folder / f"walls_{index:04d}.vtu", mesh)
+
+
+def vtk_tensor(stress: np.ndarray) -> np.ndarray:
+    """(n, 6) components xx, yy, zz, xy, yz, xz of symmetric (n, 3, 3) tensors: the order in
+    which ParaView reads a 6-component array as a symmetric tensor."""
+    s = np.asarray(stress)
+    return np.column_stack([s[:, 0, 0], s[:, 1, 1], s[:, 2, 2], s[:, 0, 1], s[:, 1, 2],
+                            s[:, 0, 2]])

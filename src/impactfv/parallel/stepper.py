@@ -102,7 +102,7 @@ class ParallelFVStepper(FVStepper):
     # ------------------------------------------------------------------ the serial interface
     def check(self, step: int, t: float):
         if self._bad is None:
-            from ..scheme import kernels as K
+            from ..backends import cpu as K
             o = self.n_owned
             local = K.state_is_bad(self.v[:o], self.F[:o], self.dim)
             self._bad = self._first_bad(local)

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..case import Case
-from ..materials import N_PROPS
+from ..physics.materials import N_PROPS
 from ..mesh.core import renumber_for_locality
 from ..mesh.dual import CLOSURE, median_dual
 from ..mesh.edges import facet_index

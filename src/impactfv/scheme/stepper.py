@@ -9,15 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..backends.cpu import dim_tag, superword_vectorization
+from ..compiled import dim_tag, superword_vectorization
 from ..case import Case
 from ..errors import InputError, SimulationError
-from ..io.fields import nodal_stress
-from . import kernels as K
+from ..backends import cpu as K
 from .discretisation import Discretisation, discretise
-from .limiters import IDS as LIMITER_IDS
+from ..physics.limiters import IDS as LIMITER_IDS
 from .loads import Loads
-from .time import STAGES
+from ..physics.runge_kutta import STAGES
 
 
 def relaxation_weights(m, beta):
@@ -63,6 +62,14 @@ class FVStepper:
         self.tangential_correction = 1.0 if correction == "full" else 0.0
         # the upwind geometric flux needs the reconstructed tractions to be second order
         self.stress_reconstructed = self.order == 2 and self.upwind_geometric
+        # the edge flux's options (scheme.bodies.edge_flux)
+        self.flux_options = (self.order == 2, self.stress_reconstructed, self.upwind_geometric,
+                             self.bias, self.switch)
+        # the discretisation's arrays as the loops take them
+        self._dual = (m.node_edge_start, m.node_neighbour, m.node_C, m.node_half,
+                      m.bface_start, m.bface_others, m.bface_C, m.volume)
+        self._edge_mesh = (m.edges, m.C, m.C_len, m.half, m.edge_offsets)
+        self._face_mesh = (m.bface_node, m.bface_others, m.bface_C, m.bface_bc, m.closure)
         # the grid-scale part of F's mismatch with the gradient of the positions relaxed at
         # the rate 1 / tau_a, tau_a = compatibility_time h_a / c_p,a (docs/theory.md,
         # "Compatibility relaxation")
@@ -233,24 +240,21 @@ class FVStepper:
         if self.order == 2:
             # the positions' gradient of the compatibility relaxation in the same pass (the
             # contact stage and the flux assembly do not move the positions)
-            K.limited_gradient(self.U, m.node_edge_start, m.node_neighbour, m.node_C,
-                               m.node_half, m.bface_start, m.bface_others, m.bface_C,
-                               m.closure, m.volume, self.limiter, self.grad, self.dim,
-                               self.components, self.x, self.F, self.mismatch, relaxed)
+            K.limited_gradient(self.U, self._dual, m.closure, self.limiter, self.grad,
+                               self.components, self.x, self.F, self.mismatch, relaxed,
+                               self.dim)
             self._exchange_gradients()
         loads = self.loads
         stage_time = self.time + (self.dt if stage else 0.0)
         if self.contact is not None:
             self.contact.stage(self.x, self.v, self.F, self.sigma, self.grad, self.order == 2,
                                self.dt, stage, stage_time)
-        K.assemble_rates(self.v, self.F, self.sigma, self.grad, m.node_material, m.material_table,
-                         m.edges, m.C, m.C_len, m.half, m.edge_offsets, m.bface_node,
-                         m.bface_others, m.bface_C, m.bface_bc, m.closure, m.bc_fixed,
-                         loads.face_velocity, loads.face_traction, self.order == 2,
-                         self.stress_reconstructed, self.upwind_geometric, self.bias,
-                         self.switch, self.contact_state, self.tangential_correction,
-                         self.face_contact_weight, self.force, self.dF, self.power,
-                         self.bc_force, self.dim)
+        K.assemble_rates(self.v, self.F, self.sigma, self.grad, m.node_material,
+                         m.material_table, self._edge_mesh, self._face_mesh,
+                         (m.bc_fixed, loads.face_velocity, loads.face_traction,
+                          self.tangential_correction),
+                         self.flux_options, self.contact_state, self.face_contact_weight,
+                         self.force, self.dF, self.power, self.bc_force, self.dim)
         if self.contact is not None:
             self.contact.apply(self.force, self.dF, loads.fixed_value)
         if relaxed:
@@ -285,11 +289,9 @@ class FVStepper:
         if not gradient_done:     # order 1: the positions' gradient pass alone
             if self._positions_gradient is None:
                 self._positions_gradient = np.zeros((m.n_nodes, m.dim, m.dim + 1))
-            K.limited_gradient(self.x, m.node_edge_start, m.node_neighbour, m.node_C,
-                               m.node_half, m.bface_start, m.bface_others, m.bface_C,
-                               m.closure, m.volume, LIMITER_IDS["none"],
-                               self._positions_gradient, self.dim, self.dim, self.x, self.F,
-                               self.mismatch, True)
+            K.limited_gradient(self.x, self._dual, m.closure, LIMITER_IDS["none"],
+                               self._positions_gradient, self.dim, self.x, self.F,
+                               self.mismatch, True, self.dim)
         # the owned nodes' differences read their ghost neighbours' mismatch (MPI)
         self._exchange_mismatch()
         K.relax_towards_positions(self.mismatch, self.relaxation_weight, self.n_owned,
@@ -431,23 +433,23 @@ class FVStepper:
             # both stages end at t + dt (Heun), where the prescribed velocities are imposed
             loads.at(t + dt)
             # the owned nodes (all of them in a serial run)
-            nodal = tuple(a[:o] for a in (self.v0, self.F0, self.x0, self.v, self.F, self.x,
-                                          self.force, self.dF, self.sigma, self.contact_state,
-                                          self.contact_xdot, m.node_material))
-            node_data = tuple(a[:o] for a in (m.volume, m.fixed_mask, loads.fixed_value))
+            start = (self.v0[:o], self.F0[:o], self.x0[:o])
+            state = (self.v[:o], self.F[:o], self.x[:o])
+            rates = (self.force[:o], self.dF[:o], self.sigma[:o])
+            node_data = (m.volume[:o], m.fixed_mask[:o], loads.fixed_value[:o])
+            nodal = (start, state, rates, self.contact_state[:o], self.contact_xdot[:o],
+                     m.node_material[:o], m.material_table, node_data)
             if stage < last:
-                rate = K.rk_update(alpha, dt, *nodal, m.material_table, *node_data,
-                                   stage == 0, self.dim)
+                rate = K.rk_update(alpha, dt, *nodal, stage == 0, self.dim)
                 self._begin_state_exchange()
                 self._close_stage(stage, rate)
                 continue
             # the last stage also gives the next time step, the state check and (when a
             # history row follows) the monitors, in the same pass over the nodes
             smallest, bad, rate, integration = K.rk_update_last(
-                alpha, dt, *nodal, m.material_table, *node_data, m.node_length[:o],
-                m.body_start, bool(self.history_due), self.monitor_buf,
-                bool(self.stress_reconstructed), self.U[:o], self.stretch_bound[:o],
-                self.dim)
+                alpha, dt, *nodal, m.node_length[:o], m.body_start,
+                bool(self.history_due), self.monitor_buf, bool(self.stress_reconstructed),
+                self.U[:o], self.stretch_bound[:o], self.dim)
             if self.disc.dim == 3:
                 # the last stage gave an upper bound of the minimum and each node's lower bound
                 smallest = K.smallest_time_step_of_candidates(
@@ -534,11 +536,11 @@ class FVStepper:
         m, v, F, x, status, tstar_n = whole or self._whole_state()
         n = m.n_nodes
         pressure, von_mises, jac = np.empty(n), np.empty(n), np.empty(n)
-        K.point_fields(F, m.node_material, m.material_table, pressure, von_mises, jac,
-                       self.dim)
+        stress = np.empty((n, 3, 3))
+        K.point_fields(np.ascontiguousarray(F), m.node_material, m.material_table, pressure,
+                       von_mises, jac, stress, self.dim)
         data = {"velocity": v, "displacement": x - m.X, "pressure": pressure,
-                "von_mises": von_mises,
-                "stress": nodal_stress(F, m.node_material, m.material_table), "J": jac,
+                "von_mises": von_mises, "stress": stress, "J": jac,
                 "body": m.body_of_node.astype(np.int32)}
         if status is not None:
             data["contact_status"] = status.astype(np.int32)  # 0 open 1 stick 2 slip

@@ -30,7 +30,7 @@ def two_bars(length=0.01, width=0.001, gap=4e-4, v0=50.0, divisions=(50, 5),
              bodies_order=("left", "right"), **run):
     """Two bars along x meeting at x = 0, velocities +-v0 (and +-tangential along y).
     Three ``divisions`` make them 3D bars of square section width x width."""
-    from ..materials import Material
+    from ..physics.materials import Material
 
     mats = [dict(m) for m in materials]
     if mats[0]["name"] == mats[1]["name"] and mats[0] != mats[1]:
@@ -66,7 +66,7 @@ def bar_on_wall(length=0.01, width=0.001, gap=2e-4, v0=50.0, divisions=(50, 5),
                 material=SEED_MATERIAL, model="slip", end_time=None, **run):
     """A bar moving at +v0 onto a rigid wall at x = 0 (roller sides; three ``divisions``
     make it a 3D bar of square section)."""
-    from ..materials import Material
+    from ..physics.materials import Material
 
     c = Material.from_entry(material).p_wave_speed
     if end_time is None:

@@ -65,7 +65,7 @@ def seed_bars_case(h: float, gap: float = 0.2e-3, after_touch: float = 20e-6,
 
 def seed_reference_pressure() -> float:
     """rho c_p v0 of the seed bars (1D acoustic contact pressure, 664 MPa)."""
-    from ..materials import Material
+    from ..physics.materials import Material
 
     return Material.from_entry(SEED_MATERIAL).p_impedance * SEED_V0
 
@@ -168,7 +168,7 @@ def grid_scale_pressure(bodies: dict, p_ref: float, band: float = 0.5e-3) -> flo
 
 def block_on_slab_reference_pressure() -> float:
     """Normal closing speed (100 m/s) x Z_steel Z_al / (Z_steel + Z_al)."""
-    from ..materials import Material
+    from ..physics.materials import Material
 
     za = Material.from_entry(STEEL).p_impedance
     zb = Material.from_entry(ALUMINIUM).p_impedance

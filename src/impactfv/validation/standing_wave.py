@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..materials import Material
+from ..physics.materials import Material
 from ..mesh.dual import median_dual
 
 RUBBER = dict(name="rubber", model="linear_elastic", density=1100.0, youngs_modulus=17.0e6,

@@ -7,8 +7,8 @@ of length d = 2 or 3; the functions write their results into arrays the caller p
 never allocate, so the same source compiles for any backend.
 """
 
-from ..materials import small_strain
-from ..tensors import cofactor_times, dot, normalise, solve
+from .materials import small_strain
+from .tensors import cofactor_times, dot, normalise, solve
 
 
 def spatial_normal(F, N, n):

@@ -6,7 +6,7 @@
 The same update serves both stages: alpha = 0 for the first, 1/2 for the second.
 """
 
-from ..materials import RHO, energy_second_derivative
+from .materials import RHO, energy_second_derivative
 
 STAGES = (0.0, 0.5)
 

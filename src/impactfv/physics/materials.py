@@ -281,8 +281,9 @@ def cauchy_stress_and_energy(F, props, sigma):
 
 
 def pressure_and_von_mises(F, props, sigma):
-    """Mean pressure -tr(sigma)/3 (compression positive; plane strain includes sigma_zz) and
-    the von Mises stress. ``sigma`` is d x d scratch."""
+    """Mean pressure -tr(sigma)/3 (compression positive; plane strain includes sigma_zz), the
+    von Mises stress, and sigma_zz of plane strain (0 in 3D); the Cauchy stress into
+    ``sigma`` (d x d)."""
     d = F.shape[0]
     s_zz = cauchy_stress(F, props, sigma)
     tr = 0.0
@@ -297,7 +298,7 @@ def pressure_and_von_mises(F, props, sigma):
             ss += (sigma[i, k] - (tr / 3.0 if i == k else 0.0)) ** 2
     if d == 2:
         ss += (s_zz - tr / 3.0) ** 2
-    return p, math.sqrt(max(1.5 * ss, 0.0))
+    return p, math.sqrt(max(1.5 * ss, 0.0)), s_zz
 
 
 #: slack of min_stretch_bounds, as a fraction of the mean eigenvalue q of C, on both bounds

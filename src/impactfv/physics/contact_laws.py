@@ -15,7 +15,7 @@ hence the signs of its eq. (5). Tangential vectors are v_t = v - (v . n) n.
 
 import math
 
-from ..tensors import dot
+from .tensors import dot
 
 
 def normal_state(vnA, tnA, vnB, tnB, zpA, zpB):
