@@ -57,12 +57,13 @@ def problem(case) -> str | None:
 _kernels = {}
 
 
-def kernels(d: int, m: int, kind: int):
-    """The kernels for dimension d, m reconstructed fields and limiter ``kind`` (all
-    compile-time constants), compiled once per combination."""
-    key = (d, m, kind)
+def kernels(d: int, m: int, kind: int, options=(False, False, False)):
+    """The kernels for dimension d, m reconstructed fields, limiter ``kind`` and the edge
+    flux's (reconstruct, stress_reconstructed, upwind_geometric) (all compile-time
+    constants), compiled once per combination."""
+    key = (d, m, kind, tuple(bool(o) for o in options))
     if key not in _kernels:
-        _kernels[key] = _make_kernels(d, m, kind)
+        _kernels[key] = _make_kernels(*key)
     return _kernels[key]
 
 
@@ -71,42 +72,38 @@ def kernels(d: int, m: int, kind: int):
 cuda = None
 
 
-def _make_kernels(d, m, kind):
+def _make_kernels(d, m, kind, options):
     global cuda
     from numba import cuda as _cuda
     from numba import float64
     cuda = _cuda
 
     from ..physics import materials as M
-    from ..physics import limiters as L
-    from ..physics import riemann as R
     from ..physics import runge_kutta as T
     from ..physics.tensors import determinant as _determinant
     from ..physics.tensors import symmetric_index as _symmetric_index
+    from ..scheme import bodies as B
 
     cauchy_stress = device(M.cauchy_stress)
     strain_energy_density = device(M.strain_energy_density)
     min_stretch = device(M.min_stretch)
     determinant = device(_determinant)
-    strain_power = device(M.strain_power)
     symmetric_index = device(_symmetric_index)
-    face_geometry = device(R.face_geometry)
-    face_traction = device(R.face_traction)
-    face_area_normal = device(R.face_area_normal)
-    upwind_traction_area = device(R.upwind_traction_area)
-    central_velocity = device(R.central_velocity)
-    upwind_velocity = device(R.upwind_velocity)
-    boundary_state = device(R.boundary_state)
-    geometric_boundary_velocity = device(R.geometric_boundary_velocity)
-    limiter_factor = device(L.limiter_factor)
-    blend_weight = device(L.blend_weight)
-    switch_scales = device(L.switch_scales)
-    rk_stage = device(T.rk_stage)
     heun_energy_excess = device(T.heun_energy_excess)
-    RHO, CP, CS = M.RHO, M.CP, M.CS
-    BJ, NONE = L.BARTH_JESPERSEN, L.NONE
-    D2 = d * d
+    edge_flux = device(B.edge_flux)
+    boundary_face_flux = device(B.boundary_face_flux)
+    node_gradient = device(B.node_gradient)
+    node_update = device(B.node_update)
+    node_energy_rate = device(B.node_energy_rate)
+    stage_change = device(B.stage_change)
+    relaxation_change = device(B.relaxation_change)
+    RHO, CP = M.RHO, M.CP
     NMON = 2 + d
+    RECONSTRUCT, STRESS_RECONSTRUCTED, UPWIND_GEOMETRIC = options
+    EDGE_ROWS, EDGE_FORCE, EDGE_VELOCITY = B.EDGE_WORK_ROWS, B.EDGE_FORCE, B.EDGE_VELOCITY
+    FACE_ROWS = B.FACE_WORK_ROWS
+    FACE_TRACTION, FACE_STATE_VELOCITY, FACE_VELOCITY = (
+        B.FACE_TRACTION, B.FACE_STATE_VELOCITY, B.FACE_VELOCITY)
 
     @cuda.jit
     def stress_and_fields(F, v, node_material, table, sigma, U, pack):
@@ -129,90 +126,30 @@ def _make_kernels(d, m, kind):
                     U[a, d + symmetric_index(i, j, d)] = sa[i, j]
 
     @cuda.jit
-    def limited_gradient(v, node_edge_start, node_neighbour, node_C, node_half, bface_start,
-                         bface_others, bface_C, own, denominator, volume, grad):
-        # the CPU's kernels.limited_gradient, one thread per node
+    def limited_gradient(U, node_edge_start, node_neighbour, node_C, node_half, bface_start,
+                         bface_others, bface_C, volume, own, denominator, grad, x, F,
+                         mismatch, with_positions):
+        # scheme.bodies.node_gradient, one thread per node
         a = cuda.grid(1)
-        if a >= v.shape[0]:
+        if a >= U.shape[0]:
             return
-        g = cuda.local.array((m, d), float64)
-        lo = cuda.local.array(m, float64)
-        hi = cuda.local.array(m, float64)
-        rise = cuda.local.array(m, float64)
-        fall = cuda.local.array(m, float64)
-        for i in range(m):
-            lo[i] = v[a, i]
-            hi[i] = v[a, i]
-            for J in range(d):
-                g[i, J] = 0.0
-        for k in range(node_edge_start[a], node_edge_start[a + 1]):
-            b = node_neighbour[k]
-            for i in range(m):
-                ub = v[b, i]
-                mean = 0.5 * (v[a, i] + ub)
-                for J in range(d):
-                    g[i, J] += mean * node_C[k, J]
-                lo[i] = min(lo[i], ub)
-                hi[i] = max(hi[i], ub)
-        for h in range(bface_start[a], bface_start[a + 1]):
-            for i in range(m):
-                face = own * v[a, i]
-                for o in range(bface_others.shape[1]):
-                    face += v[bface_others[h, o], i]
-                face *= 1.0 / denominator    # as the CPU: 1/8 exact in 3D
-                for J in range(d):
-                    g[i, J] += face * bface_C[h, J]
-        inv = 1.0 / volume[a]
-        for i in range(m):
-            for J in range(d):
-                g[i, J] = g[i, J] * inv
-        if kind == BJ:
-            for i in range(m):
-                rise[i] = 0.0
-                fall[i] = 0.0
-            for k in range(node_edge_start[a], node_edge_start[a + 1]):
-                for i in range(m):
-                    change = 0.0
-                    for J in range(d):
-                        change += g[i, J] * node_half[k, J]
-                    rise[i] = max(rise[i], change)
-                    fall[i] = min(fall[i], change)
-        for i in range(m):
-            phi = 1.0
-            if kind != NONE:
-                u = v[a, i]
-                tolerance = 1e-10 * (hi[i] - lo[i])
-                if kind == BJ:
-                    if rise[i] > tolerance:
-                        phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], rise[i]))
-                    if fall[i] < -tolerance:
-                        phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], fall[i]))
-                else:
-                    for k in range(node_edge_start[a], node_edge_start[a + 1]):
-                        change = 0.0
-                        for J in range(d):
-                            change += g[i, J] * node_half[k, J]
-                        if abs(change) > tolerance:
-                            phi = min(phi, limiter_factor(kind, u, lo[i], hi[i], change))
-            for J in range(d):
-                grad[a, i, J] = g[i, J] * phi
-            grad[a, i, d] = phi
+        dual = (node_edge_start, node_neighbour, node_C, node_half, bface_start,
+                bface_others, bface_C, volume)
+        scratch = (cuda.local.array(m * d, float64), cuda.local.array(m, float64),
+                   cuda.local.array(m, float64), cuda.local.array(m, float64),
+                   cuda.local.array((d, d), float64), cuda.local.array(m, float64),
+                   cuda.local.array(m, float64), cuda.local.array(m, float64))
+        node_gradient(a, U, x, F, dual, own, 1.0 / denominator, kind, with_positions,
+                      scratch, grad, mismatch)
 
     @cuda.jit
-    def relax_towards_positions(F, G, weight, owned, node_edge_start, node_neighbour, dF):
-        # the CPU's kernels.relax_towards_positions, one thread per node
+    def relax_towards_positions(D, weight, owned, node_edge_start, node_neighbour, dF):
+        # scheme.bodies.relaxation_change, one thread per node
         a = cuda.grid(1)
         if a >= owned:
             return
-        start, stop = node_edge_start[a], node_edge_start[a + 1]
-        for i in range(d):
-            for J in range(d):
-                Da = F[a, i, J] - G[a, i, J]
-                change = 0.0
-                for k in range(start, stop):
-                    b = node_neighbour[k]
-                    change += weight[k] * (Da - F[b, i, J] + G[b, i, J])
-                dF[a, i, J] -= change
+        relaxation_change(a, D, weight, node_edge_start, node_neighbour, dF,
+                          cuda.local.array((d, d), float64))
 
     @cuda.jit
     def zero_rates(force, dF):
@@ -226,185 +163,66 @@ def _make_kernels(d, m, kind):
 
     @cuda.jit
     def interior_fluxes(v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-                        use_reconstruction, stress_reconstructed, upwind_geometric, bias,
-                        switch, contact_state, force, dF):
-        # the CPU's kernels._flux_edge, one thread per interior edge, scattered atomically
+                        bias, switch, contact_state, force, dF):
+        # scheme.bodies.edge_flux, one thread per interior edge, scattered atomically
         e = cuda.grid(1)
         if e >= edges.shape[0]:
             return
-        Fe = cuda.local.array((d, d), float64)
-        Sa = cuda.local.array((d, d), float64)
-        Sb = cuda.local.array((d, d), float64)
-        A = cuda.local.array(d, float64)
-        n = cuda.local.array(d, float64)
-        va = cuda.local.array(d, float64)
-        vb = cuda.local.array(d, float64)
-        w = cuda.local.array(d, float64)
-        ta = cuda.local.array(d, float64)
-        tb = cuda.local.array(d, float64)
-        tbar = cuda.local.array(d, float64)
-        tjump = cuda.local.array(d, float64)
-        t = cuda.local.array(d, float64)
-        u = cuda.local.array(d, float64)
+        work = cuda.local.array((EDGE_ROWS, d), float64)
         a = edges[e, 0]
         b = edges[e, 1]
-        props = table[node_material[a]]
-        # the face through its area vectors, as the CPU's kernels._flux_edge: n holds
-        # m = cof(F) C, and ta, tb, t are the face's forces (not per unit area)
-        area = C_len[e]
-        zp = props[RHO] * props[CP] * area
-        zs = props[RHO] * props[CS] * area
+        edge_flux(e, a, b, v, F, sigma, grad, table[node_material[a]], C, C_len, half,
+                  (RECONSTRUCT, STRESS_RECONSTRUCTED, UPWIND_GEOMETRIC, bias, switch),
+                  contact_state, cuda.local.array((d, d), float64),
+                  cuda.local.array((d, d), float64), cuda.local.array((d, d), float64), work)
         for i in range(d):
-            A[i] = C[e, i]
+            f = work[EDGE_FORCE, i]
+            cuda.atomic.add(force, (a, i), f)
+            cuda.atomic.add(force, (b, i), -f)
             for J in range(d):
-                Fe[i, J] = 0.5 * (F[a, i, J] + F[b, i, J])
-        inverse_m2 = face_area_normal(Fe, A, props, n)
-        for i in range(d):
-            va[i] = v[a, i]
-            vb[i] = v[b, i]
-        if not upwind_geometric:
-            central_velocity(va, vb, u)
-        if use_reconstruction:
-            for i in range(d):
-                ra = 0.0
-                rb = 0.0
-                for J in range(d):
-                    ra += grad[a, i, J] * half[e, J]
-                    rb += grad[b, i, J] * half[e, J]
-                if bias == 0.0:
-                    va[i] += ra
-                    vb[i] -= rb
-                else:
-                    change = v[b, i] - v[a, i]
-                    c = blend_weight(bias, change, ra, rb)
-                    va[i] += (1.0 - c) * ra + 0.5 * c * grad[a, i, d] * change
-                    vb[i] -= (1.0 - c) * rb + 0.5 * c * grad[b, i, d] * change
-        # the CPU's kernels._reconstruct_stresses
-        for i in range(d):
-            for j in range(i, d):
-                sa = sigma[a, i, j]
-                sb = sigma[b, i, j]
-                if stress_reconstructed:
-                    row = d + symmetric_index(i, j, d)
-                    ra = 0.0
-                    rb = 0.0
-                    for K in range(d):
-                        ra += grad[a, row, K] * half[e, K]
-                        rb += grad[b, row, K] * half[e, K]
-                    if bias == 0.0:
-                        sa += ra
-                        sb -= rb
-                    else:
-                        change = sb - sa
-                        c = blend_weight(bias, change, ra, rb)
-                        sa += (1.0 - c) * ra + 0.5 * c * grad[a, row, d] * change
-                        sb -= (1.0 - c) * rb + 0.5 * c * grad[b, row, d] * change
-                Sa[i, j] = sa
-                Sa[j, i] = sa
-                Sb[i, j] = sb
-                Sb[j, i] = sb
-        face_traction(Sa, n, 1.0, ta)
-        face_traction(Sb, n, 1.0, tb)
-        for i in range(d):
-            w[i] = vb[i] - va[i]
-            tbar[i] = 0.5 * (ta[i] + tb[i])
-            tjump[i] = tb[i] - ta[i]
-        zp_v = zp
-        zs_v = zs
-        if switch != 0.0 and contact_state[a] == 0 and contact_state[b] == 0:
-            # the CPU's smoothness switch (kernels._flux_edge)
-            scale_v, scale_t = switch_scales(switch, v, sigma, a, b, w, Sa, Sb,
-                                             upwind_geometric)
-            zp_v = zp * scale_v
-            zs_v = zs * scale_v
-            for i in range(d):
-                tjump[i] *= scale_t
-        upwind_traction_area(tbar, w, zp_v, zs_v, n, inverse_m2, t)
-        for i in range(d):
-            cuda.atomic.add(force, (a, i), t[i])
-            cuda.atomic.add(force, (b, i), -t[i])
-        if upwind_geometric:
-            upwind_velocity(va, vb, tjump, zp, u)
-        for i in range(d):
-            for J in range(d):
-                cuda.atomic.add(dF, (a, i, J), u[i] * C[e, J])
-                cuda.atomic.add(dF, (b, i, J), -(u[i] * C[e, J]))
+                change = work[EDGE_VELOCITY, i] * C[e, J]
+                cuda.atomic.add(dF, (a, i, J), change)
+                cuda.atomic.add(dF, (b, i, J), -change)
 
     @cuda.jit
     def boundary_fluxes(v, F, sigma, node_material, table, bface_node, bface_others, bface_C,
                         bface_bc, own, denominator, bc_fixed, prescribed_velocity,
                         prescribed_traction, tangential_correction, face_contact_weight,
                         force, dF, power, bc_force):
-        # the boundary part of the CPU's kernels.assemble_rates, one thread per face; a face
-        # takes its boundary flux for the part of it and of the step not in contact
+        # scheme.bodies.boundary_face_flux, one thread per face; a face takes its boundary
+        # flux for the part of it and of the step not in contact
         h = cuda.grid(1)
         if h >= bface_node.shape[0]:
             return
         free = 1.0 - face_contact_weight[h]
         if free == 0.0:
             return
-        Fi = cuda.local.array((d, d), float64)
-        Si = cuda.local.array((d, d), float64)
-        Z = cuda.local.array((d, d), float64)
-        N = cuda.local.array(d, float64)
-        n = cuda.local.array(d, float64)
-        vi = cuda.local.array(d, float64)
-        ti = cuda.local.array(d, float64)
-        rhs = cuda.local.array(d, float64)
-        vC = cuda.local.array(d, float64)
-        tC = cuda.local.array(d, float64)
-        fix = cuda.local.array(d, float64)
-        given = cuda.local.array(d, float64)
-        tgiven = cuda.local.array(d, float64)
-        u = cuda.local.array(d, float64)
+        work = cuda.local.array((FACE_ROWS, d), float64)
         bc = bface_bc[h]
         a = bface_node[h]
-        props = table[node_material[a]]
-        zp = props[RHO] * props[CP]
-        zs = props[RHO] * props[CS]
-        inverse_denominator = 1.0 / denominator
-        ln = 0.0
-        for J in range(d):
-            ln += bface_C[h, J] * bface_C[h, J]
-        ln = math.sqrt(ln)
-        for J in range(d):
-            N[J] = bface_C[h, J] / ln
-        for i in range(d):
-            vi[i] = own * v[a, i]
-            for o in range(bface_others.shape[1]):
-                vi[i] += v[bface_others[h, o], i]
-            vi[i] *= inverse_denominator
-            for J in range(d):
-                Fi[i, J] = own * F[a, i, J]
-                Si[i, J] = own * sigma[a, i, J]
-                for o in range(bface_others.shape[1]):
-                    Fi[i, J] += F[bface_others[h, o], i, J]
-                    Si[i, J] += sigma[bface_others[h, o], i, J]
-                Fi[i, J] *= inverse_denominator
-                Si[i, J] *= inverse_denominator
-        area = face_geometry(Fi, N, props, n)
-        face_traction(Si, n, area, ti)
-        for i in range(d):
-            fix[i] = 1.0 if bc_fixed[bc, i] else 0.0
-            given[i] = prescribed_velocity[h, i]
-            tgiven[i] = prescribed_traction[h, i]
-        boundary_state(vi, ti, zp, zs, n, fix, given, tgiven, Z, rhs, vC, tC)
-        geometric_boundary_velocity(vi, ti, tC, vC, fix, zp, n, tangential_correction, u)
+        ln = boundary_face_flux(h, a, v, F, sigma, table[node_material[a]], bface_others,
+                                bface_C, own, 1.0 / denominator, bc_fixed, bc,
+                                prescribed_velocity, prescribed_traction,
+                                tangential_correction, cuda.local.array((d, d), float64),
+                                cuda.local.array((d, d), float64),
+                                cuda.local.array((d, d), float64), work)
         face_power = 0.0
         for i in range(d):
-            cuda.atomic.add(force, (a, i), free * tC[i] * ln)
-            cuda.atomic.add(bc_force, (bc, i), free * tC[i] * ln)
+            t = free * work[FACE_TRACTION, i] * ln
+            cuda.atomic.add(force, (a, i), t)
+            cuda.atomic.add(bc_force, (bc, i), t)
             for J in range(d):
-                cuda.atomic.add(dF, (a, i, J), free * u[i] * bface_C[h, J])
-            face_power += free * tC[i] * vC[i] * ln
+                cuda.atomic.add(dF, (a, i, J), free * work[FACE_VELOCITY, i] * bface_C[h, J])
+            face_power += free * work[FACE_TRACTION, i] * work[FACE_STATE_VELOCITY, i] * ln
         cuda.atomic.add(power, 0, face_power)
 
     @cuda.jit
     def rk_update(alpha, dt, v0, F0, x0, v, F, x, force, dF, contact_state, contact_xdot,
                   node_material, table, volume, fixed_mask, fixed_value, start, stop,
                   node_length, with_checks, with_monitors, smallest, first_bad, out, body):
-        # the CPU's kernels.rk_update / rk_update_last for nodes start..stop-1 (one body
-        # when with_checks): block sums in shared memory, one atomic per block
+        # scheme.bodies.node_update for nodes start..stop-1 (one body when with_checks),
+        # and at the last stage what the CPU's rk_update_last gives: block sums in shared
+        # memory, one atomic per block
         a = start + cuda.grid(1)
         tid = cuda.threadIdx.x
         part = cuda.shared.array((THREADS, NMON), float64)
@@ -414,24 +232,10 @@ def _make_kernels(d, m, kind):
         low[tid] = math.inf
         if a < stop:
             props = table[node_material[a]]
-            inv_volume = 1.0 / volume[a]
-            inv_mass = inv_volume / props[RHO]
-            finite = True
             Fa = cuda.local.array((d, d), float64)
-            in_contact = contact_state[a] != 0
-            for i in range(d):
-                xdot = contact_xdot[a, i] if in_contact else v[a, i]
-                x[a, i] = rk_stage(alpha, x0[a, i], x[a, i], dt, xdot)
-                vn = rk_stage(alpha, v0[a, i], v[a, i], dt, force[a, i] * inv_mass)
-                if fixed_mask[a, i]:
-                    vn = fixed_value[a, i]
-                v[a, i] = vn
-                finite = finite and math.isfinite(vn)
-            for i in range(d):
-                for J in range(d):
-                    f = rk_stage(alpha, F0[a, i, J], F[a, i, J], dt, dF[a, i, J] * inv_volume)
-                    F[a, i, J] = f
-                    Fa[i, J] = f
+            finite = node_update(a, alpha, dt, v0, F0, x0, v, F, x, force, dF,
+                                 contact_state[a] != 0, contact_xdot, props, volume,
+                                 fixed_mask, fixed_value, Fa)
             if with_checks:
                 jac = determinant(Fa)
                 if not (finite and math.isfinite(jac) and jac > 0.0):
@@ -466,11 +270,10 @@ def _make_kernels(d, m, kind):
     @cuda.jit
     def energy_rate(v, F, sigma, force, dF, fixed_mask, v0, F0, volume, node_material, table,
                     dt, with_integration, out):
-        # the energy rate the CPU's kernels.rk_update sums (kernels._node_energy_rate) into
-        # out[0], into out[1] the power v . f of the held velocity components and, at the
-        # last stage, into out[2] the energy the step adds (scheme.time.heun_energy_excess,
-        # as the CPU's kernels.rk_update_last): block sums in shared memory, one atomic per
-        # block
+        # scheme.bodies.node_energy_rate into out[0], the power v . f of the held velocity
+        # components into out[1] and, at the last stage, the energy the step adds
+        # (scheme.bodies.stage_change, physics.runge_kutta.heun_energy_excess) into out[2]:
+        # block sums in shared memory, one atomic per block
         a = cuda.grid(1)
         tid = cuda.threadIdx.x
         part = cuda.shared.array((THREADS, 3), float64)
@@ -478,37 +281,21 @@ def _make_kernels(d, m, kind):
         part[tid, 1] = 0.0
         part[tid, 2] = 0.0
         if a < v.shape[0]:
+            props = table[node_material[a]]
             if with_integration:
-                props = table[node_material[a]]
-                inv_volume = 1.0 / volume[a]
-                inv_mass = inv_volume / props[RHO]
                 change = cuda.local.array((d, d), float64)
                 midway = cuda.local.array((d, d), float64)
-                dv2 = 0.0
-                for i in range(d):
-                    if not fixed_mask[a, i]:
-                        dv = force[a, i] * inv_mass - (v[a, i] - v0[a, i]) / dt
-                        dv2 += dv * dv
-                    for J in range(d):
-                        change[i, J] = dF[a, i, J] * inv_volume - (F[a, i, J] - F0[a, i, J]) / dt
-                        midway[i, J] = 0.5 * (F0[a, i, J] + F[a, i, J])
+                dv2 = stage_change(a, 1.0 / dt, v0, F0, v, F, force, dF, props, volume,
+                                   fixed_mask, change, midway)
                 part[tid, 2] = heun_energy_excess(dt, props, volume[a], dv2, change, midway)
-            Fa = cuda.local.array((d, d), float64)
-            Sa = cuda.local.array((d, d), float64)
-            Da = cuda.local.array((d, d), float64)
-            for i in range(d):
-                for J in range(d):
-                    Fa[i, J] = F[a, i, J]
-                    Sa[i, J] = sigma[a, i, J]
-                    Da[i, J] = dF[a, i, J]
-            rate = 0.0
             held = 0.0
             for i in range(d):
                 if fixed_mask[a, i]:
                     held += v[a, i] * force[a, i]
-                else:
-                    rate += v[a, i] * force[a, i]
-            part[tid, 0] = rate + strain_power(Sa, Fa, Da, table[node_material[a]])
+            part[tid, 0] = node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props,
+                                            cuda.local.array((d, d), float64),
+                                            cuda.local.array((d, d), float64),
+                                            cuda.local.array((d, d), float64))
             part[tid, 1] = held
         cuda.syncthreads()
         step = THREADS // 2
@@ -590,7 +377,7 @@ class DeviceState:
         s, m = stepper, stepper.disc
         self.s = s
         d = m.dim
-        self.k = kernels(d, len(s.components), int(s.limiter))
+        self.k = kernels(d, len(s.components), int(s.limiter), s.flux_options[:3])
         up = cuda.to_device
         # a view of v when only v is reconstructed: U has its own array on the device
         self.pack = s.stress_reconstructed
@@ -604,6 +391,9 @@ class DeviceState:
         for name in ("v", "F", "x"):
             self.arrays[name + "0"] = cuda.device_array_like(self.arrays[name])
         self.arrays["U"] = up(s.U) if self.pack else self.arrays["v"]
+        self.dual = tuple(self.arrays[name] for name in (
+            "node_edge_start", "node_neighbour", "node_C", "node_half", "bface_start",
+            "bface_others", "bface_C", "volume"))
         self.mass = up(np.ascontiguousarray(s.mass))
         n, h = m.n_nodes, len(m.bface_node)
         # contact: what the host's contact stage decides, on the device (the state and
@@ -657,11 +447,16 @@ class DeviceState:
         k.stress_and_fields[_blocks(n), THREADS](A["F"], A["v"], A["node_material"],
                                                  A["material_table"], A["sigma"], A["U"],
                                                  self.pack)
+        relaxed = s.relaxation_weight is not None
+        if relaxed and "mismatch" not in A:
+            A["mismatch"] = self.cuda.device_array((n, m.dim, m.dim))
+            A["relaxation_weight"] = self.cuda.to_device(s.relaxation_weight)
+        mismatch = A["mismatch"] if relaxed else A["F"]     # written only when relaxed
         if s.order == 2:
+            # with the relaxation, the positions' mismatch D = F - G(x) in the same pass
             k.limited_gradient[_blocks(n), THREADS](
-                A["U"], A["node_edge_start"], A["node_neighbour"], A["node_C"],
-                A["node_half"], A["bface_start"], A["bface_others"], A["bface_C"],
-                float(own), float(denominator), A["volume"], A["grad"])
+                A["U"], *self.dual, float(own), float(denominator), A["grad"], A["x"],
+                A["F"], mismatch, relaxed)
         if self.contact is not None:
             self.contact.stage(stage, stage_time)
         k.zero_rates[_blocks(n), THREADS](A["force"], A["dF"])
@@ -670,9 +465,8 @@ class DeviceState:
         if m.n_edges:
             k.interior_fluxes[_blocks(m.n_edges), THREADS](
                 A["v"], A["F"], A["sigma"], A["grad"], A["node_material"],
-                A["material_table"], A["edges"], A["C"], A["C_len"], A["half"],
-                s.order == 2, s.stress_reconstructed, s.upwind_geometric, s.bias, s.switch,
-                A["contact_state"], A["force"], A["dF"])
+                A["material_table"], A["edges"], A["C"], A["C_len"], A["half"], s.bias,
+                s.switch, A["contact_state"], A["force"], A["dF"])
         h = len(m.bface_node)
         if h:
             k.boundary_fluxes[_blocks(h), THREADS](
@@ -683,17 +477,17 @@ class DeviceState:
                 self.power, self.bc_force)
         if self.contact is not None:
             self.contact.apply()
-        if s.relaxation_weight is not None:
-            # F relaxed towards the gradient of the positions (scheme.stepper)
-            if "G" not in A:
-                A["G"] = self.cuda.device_array((n, m.dim, m.dim + 1))
-                A["relaxation_weight"] = self.cuda.to_device(s.relaxation_weight)
-            kernels(m.dim, m.dim, NO_LIMITER).limited_gradient[_blocks(n), THREADS](
-                A["x"], A["node_edge_start"], A["node_neighbour"], A["node_C"],
-                A["node_half"], A["bface_start"], A["bface_others"], A["bface_C"],
-                float(own), float(denominator), A["volume"], A["G"])
+        if relaxed:
+            # F relaxed towards the gradient of the positions (scheme.bodies.relaxation_change)
+            if s.order != 2:
+                # the positions' gradient pass alone, as the CPU's stepper does at order 1
+                if "positions_gradient" not in A:
+                    A["positions_gradient"] = self.cuda.device_array((n, m.dim, m.dim + 1))
+                kernels(m.dim, m.dim, NO_LIMITER).limited_gradient[_blocks(n), THREADS](
+                    A["x"], *self.dual, float(own), float(denominator),
+                    A["positions_gradient"], A["x"], A["F"], A["mismatch"], True)
             k.relax_towards_positions[_blocks(n), THREADS](
-                A["F"], A["G"], A["relaxation_weight"], n, A["node_edge_start"],
+                A["mismatch"], A["relaxation_weight"], n, A["node_edge_start"],
                 A["node_neighbour"], A["dF"])
         if s.loads.has_body_force:
             # the power of the body force is summed with the boundary power

@@ -96,7 +96,8 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
                  piece_face_length, piece_normal, weight, sign, mu, force_acc, fsum,
                  face_weight, face_velocity, state, length_sum, motion_sum, traction_sum,
                  dim):
-    """Contact states of the pieces, in order. A piece of pass weight w (1/2 between two
+    """Contact states of the pieces (the parts of the contact faces, the nodes' dual
+    boundary faces, that meet the partner), in order. A piece of pass weight w (1/2 between two
     bodies: each body's nodes are checked against the other's surface) gives both sides w of
     the contact: the tractions +-w phi t* l (their total on the first body, times ``sign``,
     into fsum); on each side's face the part w phi l / l_face of face and step in contact,
@@ -210,8 +211,8 @@ def wall_fractions(v, slave, gap, normal, wall_velocity, memory, dt, phi):
 def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_list, bface_C, bface_others,
               normal, wall_velocity, mu, phi, faces, force_acc, fsum, face_weight,
               face_velocity, state, length_sum, motion_sum, traction_sum, dim):
-    """Nodes of one body against a rigid wall: each of a node's faces that faces the wall
-    meets it with its own face state; the force acts on the face's projection on
+    """Nodes of one body against a rigid wall: each of a node's contact faces (its dual
+    boundary faces) that faces the wall meets it with its own face state; the force acts on the face's projection on
     the wall, the face carries the contact velocity in the F equation for the part phi of
     the step, and the node moves with it (sums as in piece_states)."""
     d = len(dim)
@@ -339,7 +340,7 @@ def first_order_in_contact(nodes, state, flat, grad):
 def apply_contact(nodes, faces, bface_node, bface_C, face_weight, face_velocity, state, xdot,
                   force_acc, fixed_mask, fixed_value, force, dF):
     """Add the contact forces to the momentum equation, and the contact velocities of the
-    faces in contact to the F equation (weighted by their part of the face and the step; the
+    contact faces (the nodes' dual boundary faces in contact) to the F equation (weighted by their part of the face and the step; the
     boundary flux keeps the rest). Velocity components prescribed by a boundary condition
     (e.g. a roller side meeting the contact face at a corner) win over the contact
     velocity."""

@@ -257,8 +257,9 @@ def _neo_hookean_cauchy_stress(F, props, sigma):
 
 
 def cauchy_stress(F, props, sigma):
-    """Cauchy stress sigma = P F^T / J into sigma (d x d); returns the out-of-plane normal
-    stress sigma_zz of plane strain (0 when d = 3, where sigma holds it)."""
+    """Cauchy stress sigma = P F^T / J of the material law (seed eq. 1a) into sigma (d x d);
+    returns the out-of-plane normal stress sigma_zz of plane strain (0 when d = 3, where
+    sigma holds it)."""
     d = F.shape[0]
     if int(props[LAW]) == LINEAR_ELASTIC:
         tr = _linear_stress_tensor(F, props, sigma)

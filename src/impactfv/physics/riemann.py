@@ -30,8 +30,8 @@ def face_geometry(F, N, props, n):
 
 
 def face_area_normal(F, A, props, m):
-    """Spatial area vector m = da n of a face of reference area vector A = dA N and
-    deformation F, written into m: cof(F) A (Nanson: da n = cof(F) dA N) for finite-strain
+    """Spatial area vector m = da n (seed eq. 9a) of a face of reference area vector
+    A = dA N and deformation F, written into m: cof(F) A (Nanson: da n = cof(F) dA N) for finite-strain
     laws, A itself for small-strain laws. Returns 1 / |m|^2, with which the projections on
     the unit normal need no square root: (n . w) n = (m . w) m / |m|^2. The force of a
     Cauchy stress on the face is sigma m (face_traction with area 1); with A of unit length
@@ -75,7 +75,8 @@ def upwind_traction(tbar, dv, zp, zs, n, t):
 
 
 def upwind_traction_area(fbar, dv, zp, zs, m, inverse_m2, f):
-    """upwind_traction on a face given by its area vector m (face_area_normal) and 1 / |m|^2:
+    """upwind_traction (seed eq. 9a) on a face given by its area vector m (face_area_normal)
+    and 1 / |m|^2:
     f = fbar + Z [[v]] / 2 with Z [[v]] = zs [[v]] + (zp - zs) (n . [[v]]) n and
     (n . [[v]]) n = (m . [[v]]) m / |m|^2. With fbar the mean force of the two sides' stresses
     on a face of reference area |A| and impedances rho c |A| this is the face's whole upwind
