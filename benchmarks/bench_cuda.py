@@ -118,7 +118,7 @@ def one_size(cuda, dim: int, nodes: int, steps: int, repeats: int) -> dict:
     step_s = min(blocks)
     # the split by kernel, in a pass of its own (the synchronisations cost a little)
     seconds = {}
-    dev = solver.device
+    dev = solver.loops
     plain = dev.k
     dev.k = TimedKernels(cuda, plain, seconds)
     t0 = time.perf_counter()

@@ -11,9 +11,10 @@ order 2 (Barth-Jespersen) and order 1, and each numba thread count, the script r
 
 * node-stage updates per second = nodes x 2 RK stages x steps / seconds spent in
   ``stepper.step(dt)`` (after warm-up steps, so numba compilation is excluded);
-* the time per step split by kernel (compute_stress, velocity_gradient, limit_gradient,
-  assemble_rates, rk_update inside ``step``; stable_time_step, state_is_bad and monitors that
-  ``impactfv.run`` calls once per step outside it). The split is taken in a second pass in
+* the time per step split by kernel (stress_and_fields or compute_stress, limited_gradient,
+  assemble_rates, relax_towards_positions, rk_update and rk_update_last inside ``step``;
+  stable_time_step, state_is_bad and monitors, which ``impactfv.run`` calls outside it only
+  when the last stage did not give them). The split is taken in a second pass in
   which every kernel of ``impactfv.backends.cpu`` is temporarily replaced by a timing
   wrapper, so it follows whatever arguments the stepper passes; "other" is step time not
   spent in a kernel (array copies, Python);
@@ -43,8 +44,9 @@ import sys
 import time
 
 DEFAULT_SIZES = "10k,25k,100k,250k,1M"
-KERNELS_IN_STEP = ("compute_stress", "pack_velocity_and_stress", "limited_gradient",
-                   "assemble_rates", "rk_update")
+KERNELS_IN_STEP = ("stress_and_fields", "compute_stress", "pack_velocity_and_stress",
+                   "limited_gradient", "assemble_rates", "relax_towards_positions",
+                   "rk_update", "rk_update_last", "smallest_time_step_of_candidates")
 KERNELS_PER_STEP = ("stable_time_step", "state_is_bad", "monitors")
 
 
@@ -125,8 +127,8 @@ def current_rss_bytes() -> int:
 class KernelTimer:
     """Replace every kernel of ``impactfv.backends.cpu`` by a timing wrapper, then restore.
 
-    Only kernels defined in kernels.py are wrapped (not the material/Riemann point functions
-    it compiles), and only after a warm-up, so no compilation happens while they are wrapped.
+    Only the loops defined in backends/cpu.py are wrapped (not the loop bodies and point
+    functions they compile), and only after a warm-up, so no compilation happens while they are wrapped.
     """
 
     def __init__(self, module):
@@ -359,9 +361,11 @@ def report(results: list[dict], info: dict) -> str:
     names.sort(key=lambda k: order_key.get(k, len(order_key)))
     in_step = [k for k in names if k not in KERNELS_PER_STEP]
     outside = [k for k in names if k in KERNELS_PER_STEP]
-    short = {"compute_stress": "stress", "pack_velocity_and_stress": "pack",
-             "limited_gradient": "grad+limit", "assemble_rates": "assemble",
-             "rk_update": "rk_upd",
+    short = {"stress_and_fields": "stress", "compute_stress": "stress",
+             "pack_velocity_and_stress": "pack", "limited_gradient": "grad+limit",
+             "assemble_rates": "assemble", "relax_towards_positions": "relax",
+             "rk_update": "rk_upd", "rk_update_last": "rk_last",
+             "smallest_time_step_of_candidates": "dt_cand",
              "stable_time_step": "stable_dt", "state_is_bad": "check", "monitors": "monitors"}
     out.append("Breakdown, ms per step (% of the run-loop step = step + stable_dt + check + "
                "monitors; fastest block of --repeats, kernels timed through wrappers);")

@@ -54,6 +54,20 @@ def block_case(divisions=(20, 8), size=(0.01, 0.004), velocity=(0.0, 0.0), end_t
     }
 
 
+def box_case(divisions=(8, 4, 4), size=(0.004, 0.002, 0.002), velocity=(0.0, 0.0, 0.0),
+             end_time=2e-6, boundary=(), material=None, **run):
+    """A one-body box of tetrahedra as a dict (seed copper unless ``material`` is given)."""
+    material = material or COPPER
+    return {
+        "run": {"end_time": end_time, **run},
+        "material": [dict(material)],
+        "body": [{"name": "block", "material": material["name"], "velocity": list(velocity),
+                  "mesh": {"generator": "box", "origin": [0.0, 0.0, 0.0], "size": list(size),
+                           "divisions": list(divisions)},
+                  "boundary": [dict(b) for b in boundary]}],
+    }
+
+
 @pytest.fixture
 def block():
     return lambda **kw: copy.deepcopy(block_case(**kw))

@@ -190,10 +190,10 @@ def test_a_ring_crushed_until_its_inner_faces_touch(wall, cells):
     disc / self: -0.31% / none / none of h with 2 cells, -0.02% / none / -0.68% with 3), no
     triangle turns inside out, and the energy balance column stays at its start to 1e-5 of
     the energy (measured 2e-6 and 3e-6). The balance holds only with Heun's energy excess
-    taken with the material's elasticity at the node's state: with the small-strain one
-    (before 2026-12-07) it was off by 20% and 26% of the energy, as Barth-Jespersen's factor switches
-    between the Runge-Kutta stages on the ring's bending waves and the integration column
-    reaches the size of the energy (docs/contact.md, "Known limitations"). The 3-cell wall is
+    taken with the material's elasticity at the node's state: with the small-strain one it
+    is off by 20% and 26% of the energy, as Barth-Jespersen's factor switches between the
+    Runge-Kutta stages on the ring's bending waves and the integration column reaches the
+    size of the energy (docs/contact.md, "Known limitations"). The 3-cell wall is
     a slow test (about 3 minutes)."""
     result = run(load_case(crushed_ring(wall, cells)))
     h, cell = result.history, wall / cells

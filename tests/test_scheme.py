@@ -1,31 +1,52 @@
-"""Discrete identities and conservation of the p-F scheme (docs/validation.md)."""
+"""Discrete identities (in 2D and 3D) and conservation of the p-F scheme
+(docs/validation.md)."""
 
 import numpy as np
 import pytest
+from conftest import block_case, box_case
 
 from impactfv import load_case, run
 from impactfv.physics.materials import first_piola
 from impactfv.mesh.dual import green_gauss_gradient, median_dual
 from impactfv.scheme.stepper import FVStepper
 
+#: the discrete identities below hold in both dimensions: their cases, per dimension
+VELOCITY = {2: (12.0, -7.0), 3: (12.0, -7.0, 3.0)}
+STRETCH = {2: [[1.01, 0.004], [0.002, 0.985]],
+           3: [[1.01, 0.004, -0.003], [0.002, 0.985, 0.001], [0.0015, -0.002, 1.005]]}
+SMOOTH = {2: ["30*sin(400*x)", "20*cos(900*y) - 3000*x"],
+          3: ["30*sin(800*x)", "20*cos(900*y) - 3000*x", "4000*y"]}
 
-def test_uniform_velocity_stays_uniform(block):
-    result = run(load_case(block(velocity=(12.0, -7.0), end_time=3e-6)))
-    v = result.bodies["block"]["velocity"]
-    assert np.abs(v - [12.0, -7.0]).max() < 1e-10
-    F = result.bodies["block"]["F"]
-    assert np.abs(F - np.eye(2)).max() < 1e-13
+
+def body_case(dim, **kw):
+    """A one-body block (rectangle of triangles or box of tetrahedra) of seed copper."""
+    return block_case(**kw) if dim == 2 else box_case(**kw)
 
 
-def test_uniform_stretch_with_matching_tractions_stays_uniform(block):
-    Fu = np.array([[1.01, 0.004], [0.002, 0.985]])
-    case = block(end_time=3e-6)
+@pytest.mark.parametrize("dim", [2, 3])
+def test_uniform_velocity_stays_uniform(dim):
+    result = run(load_case(body_case(dim, velocity=VELOCITY[dim], end_time=3e-6)))
+    body = result.bodies["block"]
+    assert np.abs(body["velocity"] - VELOCITY[dim]).max() < 1e-10
+    assert body["F"].shape[1:] == (dim, dim)
+    assert np.abs(body["F"] - np.eye(dim)).max() < 1e-13
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_uniform_stretch_with_matching_tractions_stays_uniform(dim):
+    """A uniform F with the tractions P N on every face is an exact steady state of the
+    discrete equations: F and v stay to round-off."""
+    Fu = np.array(STRETCH[dim])
+    case = body_case(dim, end_time=3e-6)
     mat = load_case(case).materials["copper"]
-    P = np.zeros((2, 2))
+    P = np.zeros((dim, dim))
     first_piola(Fu, np.array(mat.table_row()), P)
-    normals = {"xmin": (-1, 0), "xmax": (1, 0), "ymin": (0, -1), "ymax": (0, 1)}
-    case["body"][0]["boundary"] = [{"region": r, "traction": list(P @ np.array(n, float))}
-                                   for r, n in normals.items()]
+    faces = {}
+    for axis, name in enumerate("xyz"[:dim]):
+        for side, sign in (("min", -1.0), ("max", 1.0)):
+            faces[f"{name}{side}"] = sign * np.eye(dim)[axis]
+    case["body"][0]["boundary"] = [{"region": r, "traction": list(P @ n)}
+                                   for r, n in faces.items()]
     solver = FVStepper(load_case(case))
     solver.F[:] = Fu
     solver.x[:] = solver.disc.X @ Fu.T
@@ -33,6 +54,66 @@ def test_uniform_stretch_with_matching_tractions_stays_uniform(block):
         solver.step(0.5 * solver.stable_dt())
     assert np.abs(solver.F - Fu).max() < 1e-12
     assert np.abs(solver.v).max() < 1e-9
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_interior_F_stays_the_gradient_of_positions(dim):
+    """With the central geometric flux F_a = GG(x)_a at every interior node (without the
+    compatibility relaxation, which pulls the interior nodes' F towards the boundary nodes'
+    mismatch, where the Green-Gauss gradient is first order)."""
+    case = body_case(dim, divisions=(16, 8) if dim == 2 else (8, 6, 6), end_time=1e-5,
+                     geometric_flux="central", compatibility_time=0.0, velocity=SMOOTH[dim])
+    solver = FVStepper(load_case(case))
+    for _ in range(30):
+        solver.step(solver.stable_dt())
+    m = solver.disc
+    dual = median_dual(m.X, m.bodies[0].cells)
+    gg = green_gauss_gradient(dual, solver.x)
+    interior = np.ones(m.n_nodes, bool)
+    interior[m.bface_node] = False
+    assert interior.sum() > 50
+    assert np.abs(solver.F[interior] - gg[interior]).max() < 1e-12
+    assert np.abs(solver.F[interior] - np.eye(dim)).max() > 1e-4  # it did deform
+
+
+@pytest.mark.parametrize("dim, blocks", [(2, 3), (2, 7), (3, 4)])
+def test_parallel_edge_blocks_match_the_serial_loop(dim, blocks):
+    """Edge loops run by node block in parallel: a partition into several blocks gives the
+    rates of one serial block (to round-off), on a mesh whose node numbering was
+    shuffled."""
+    from impactfv.mesh.generators import box, rectangle
+    from impactfv.scheme.discretisation import partition_edges
+
+    if dim == 2:
+        divisions = (30, 12)
+        mesh = rectangle((0.0, 0.0), (0.01, 0.004), divisions, "crossed")
+    else:
+        divisions = (6, 4, 3)
+        mesh = box((0.0, 0.0, 0.0), (0.004, 0.002, 0.002), divisions)
+    perm = np.random.default_rng(5).permutation(mesh.n_nodes)
+    inverse = np.argsort(perm)
+    case = load_case(body_case(dim, divisions=divisions, velocity=SMOOTH[dim]))
+    case.bodies[0].mesh.points = mesh.points[perm]
+    case.bodies[0].mesh.cells = inverse[mesh.cells]
+    case.bodies[0].mesh.regions = {k: inverse[v] for k, v in mesh.regions.items()}
+    results = []
+    for n_blocks in (1, blocks):
+        solver = FVStepper(case)
+        m = solver.disc
+        edges, C, offsets = partition_edges(m.edges, m.C, m.n_nodes, n_blocks)
+        m.edges, m.C, m.edge_offsets = edges, C, offsets
+        m.C_len = np.linalg.norm(C, axis=1)
+        m.half = 0.5 * (m.X[edges[:, 1]] - m.X[edges[:, 0]])
+        solver.edge_mesh = (m.edges, m.C, m.C_len, m.half, m.edge_offsets)
+        solver.F += 1e-3 * np.sin(np.arange(solver.F.size)).reshape(solver.F.shape)
+        solver.rates()
+        results.append((solver.force.copy(), solver.dF.copy()))
+        assert len(offsets) == n_blocks + 2
+    (f1, d1), (f2, d2) = results
+    assert np.allclose(f1, f2, rtol=0, atol=1e-9 * np.abs(f1).max())
+    assert np.allclose(d1, d2, rtol=0, atol=1e-12 * np.abs(d1).max())
+
+
 
 
 @pytest.mark.parametrize("geometric_flux", ["central", "upwind"])
@@ -56,26 +137,6 @@ def test_free_body_conserves_momentum_and_never_gains_energy(block, geometric_fl
     assert lost[1] < 0.5 * lost[0]
 
 
-def test_interior_F_stays_the_gradient_of_positions(block):
-    """With the central geometric flux F_a = GG(x)_a at every interior node (without the
-    compatibility relaxation, which pulls the interior nodes' F towards the boundary nodes'
-    mismatch, where the Green-Gauss gradient is first order)."""
-    case = block(divisions=(16, 8), end_time=1e-5, geometric_flux="central",
-                 compatibility_time=0.0,
-                 velocity=["30*sin(400*x)", "20*cos(900*y) - 3000*x"])
-    solver = FVStepper(load_case(case))
-    for _ in range(30):
-        solver.step(solver.stable_dt())
-    m = solver.disc
-    dual = median_dual(m.X, m.bodies[0].cells)
-    gg = green_gauss_gradient(dual, solver.x)
-    interior = np.ones(m.n_nodes, bool)
-    interior[m.bface_node] = False
-    assert interior.sum() > 50
-    assert np.abs(solver.F[interior] - gg[interior]).max() < 1e-12
-    assert np.abs(solver.F[interior] - np.eye(2)).max() > 1e-4  # it did deform
-
-
 @pytest.mark.parametrize("limiter", ["barth_jespersen", "venkatakrishnan"])
 def test_limiter_removes_the_overshoot_at_a_velocity_jump(block, limiter):
     """Before the waves reach the ends, the limited profile stays within the initial range
@@ -97,37 +158,6 @@ def test_limiter_removes_the_overshoot_at_a_velocity_jump(block, limiter):
     assert fluxes_alone < (1e-4 if limiter == "barth_jespersen" else 1e-2) * 10.0
     assert limited < (1e-3 if limiter == "barth_jespersen" else 1e-2) * 10.0
     assert limited < unlimited
-
-
-@pytest.mark.parametrize("blocks", [1, 3, 7])
-def test_parallel_edge_blocks_match_the_serial_loop(block, blocks):
-    """Edge loops run by node block in parallel: any partition gives the same rates (to
-    round-off) as one serial block, on a mesh whose node numbering was shuffled."""
-    from impactfv.mesh import rectangle
-    from impactfv.scheme.discretisation import partition_edges
-
-    mesh = rectangle((0.0, 0.0), (0.01, 0.004), (30, 12), "crossed")
-    perm = np.random.default_rng(5).permutation(mesh.n_nodes)
-    inverse = np.argsort(perm)
-    case = load_case(block(divisions=(30, 12), velocity=["30*sin(400*x)", "20*cos(900*y)"]))
-    case.bodies[0].mesh.points = mesh.points[perm]
-    case.bodies[0].mesh.cells = inverse[mesh.cells]
-    case.bodies[0].mesh.regions = {k: inverse[v] for k, v in mesh.regions.items()}
-    results = []
-    for n_blocks in (1, blocks):
-        solver = FVStepper(case)
-        m = solver.disc
-        edges, C, offsets = partition_edges(m.edges, m.C, m.n_nodes, n_blocks)
-        m.edges, m.C, m.edge_offsets = edges, C, offsets
-        m.C_len = np.linalg.norm(C, axis=1)
-        m.half = 0.5 * (m.X[edges[:, 1]] - m.X[edges[:, 0]])
-        solver.F += 1e-3 * np.sin(np.arange(solver.F.size)).reshape(solver.F.shape)
-        solver.rates()
-        results.append((solver.force.copy(), solver.dF.copy()))
-        assert len(offsets) == n_blocks + 2
-    (f1, d1), (f2, d2) = results
-    assert np.allclose(f1, f2, rtol=0, atol=1e-9 * np.abs(f1).max())
-    assert np.allclose(d1, d2, rtol=0, atol=1e-12 * np.abs(d1).max())
 
 
 @pytest.mark.parametrize("order, geometric_flux", [(2, "upwind"), (2, "central"), (1, "upwind")])

@@ -83,12 +83,9 @@ def check_clean_fronts(kind, model, nu, **run_settings):
 @pytest.mark.parametrize("kind", ["p", "s"])
 def test_the_fluxes_alone_keep_the_fronts_clean(kind, chi):
     """The same fronts (neo-Hookean, nu = 0.495) without the compatibility relaxation
-    (compatibility_time = 0, the default before 2026-12-06; measured then: at most 0.2% of
-    the jump behind p fronts, 0.9% behind s fronts): the upwind fluxes' own shock capturing,
-    which the relaxation must not be needed for. Relaxing all of the mismatch, as first
-    built, overshot by 2.4% at 30 transit times and 4.1% at 10 (the positions follow the
-    central velocity, whose front oscillates); the grid-scale relaxation of the default
-    stays within 1.42%."""
+    (compatibility_time = 0; measured: at most 0.2% of the jump behind p fronts, 0.9% behind
+    s fronts): the upwind fluxes' own shock capturing, which the relaxation must not be
+    needed for (with it, the default, the fronts stay within 1.42%)."""
     check_clean_fronts(kind, "neo_hookean", 0.495, compatibility_time=0.0, chi=chi)
 
 

@@ -99,9 +99,8 @@ BOX = {"generator": "box", "origin": [0, 0, 0], "size": [0.004, 0.002, 0.002],
 @pytest.mark.parametrize("mesh,dim", [(RECTANGLE, 2), (BOX, 3), ("gmsh", 3)],
                          ids=["triangles", "box", "gmsh tetrahedra"])
 def test_default_courant_number_is_below_the_stability_limit(tmp_path, mesh, dim, order):
-    """Measured limits with the defaults (the compatibility relaxation on; re-measured
-    2026-12-06): triangles 0.414 / 0.489, box 0.442 / 0.497 (order 1 / order 2). Without the
-    relaxation: triangles 0.418 / 0.495, box 0.445 / 0.501, gmsh (353 nodes) 0.456 / 0.551,
+    """Measured limits with the defaults (the compatibility relaxation on): triangles
+    0.414 / 0.489, box 0.442 / 0.497 (order 1 / order 2). Without the relaxation: triangles 0.418 / 0.495, box 0.445 / 0.501, gmsh (353 nodes) 0.456 / 0.551,
     gmsh (107 nodes) 0.449 / 0.526, gmsh (62 nodes, the test) 0.460 / 0.561. No mode grows
     at any time step."""
     if mesh == "gmsh":

@@ -6,24 +6,24 @@ Semi-discrete equations on the median dual, per node a (seed eq. 9)::
     Omega_a dF_a/dt      = sum_b v_ab (x) C_ab + sum_gamma v_gamma (x) C_gamma
     dx_a/dt              = v_a
 
-The physics lives in point functions (scheme.riemann, scheme.limiters, scheme.time,
-materials); these loops only gather their inputs and scatter their results. Every kernel
-takes ``dim``, a tuple of d zeros (backends.cpu.dim_tag), so that the dimension is a
-compile-time constant, and hands the point functions local copies (backends.cpu). Loops over nodes are parallel; the edge loops run by node block
-(Discretisation.edge_offsets): blocks in parallel, the edges joining two blocks afterwards.
+The loop bodies (scheme.bodies) and the physics they call (impactfv.physics) are point
+functions compiled by compiled.point; these loops only iterate over them and scatter their
+results. Every kernel takes ``dim``, a tuple of d zeros (compiled.dim_tag), so that the
+dimension is a compile-time constant, and hands the bodies scratch arrays on the stack
+(compiled.local_matrix, ...). Loops over nodes are parallel; the edge loops run by node
+block (Discretisation.edge_offsets): blocks in parallel, the edges joining two blocks
+afterwards, each node's sums held while its run of edges is walked.
 """
 
 import numpy as np
 from numba import njit, prange
 
+from ..compiled import (KERNEL_FASTMATH, load_matrix, local_components, local_matrix,
+                        local_rows, local_scratch, local_vector, point, store_matrix)
 from ..physics import materials as M
-from ..compiled import (KERNEL_FASTMATH, load_matrix, load_vector, local_components,
-                            local_matrix, local_rows, local_scratch, local_vector, point,
-                            store_matrix)
+from ..physics import runge_kutta as T
 from ..physics.tensors import determinant as _determinant
 from ..physics.tensors import symmetric_index as _symmetric_index
-from ..physics import limiters as L
-from ..physics import runge_kutta as T
 from ..scheme import bodies as B
 
 cauchy_stress = point(M.cauchy_stress)

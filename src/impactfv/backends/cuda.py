@@ -1,20 +1,20 @@
 """The CUDA backend: the loops of one finite-volume step on an NVIDIA GPU (numba-cuda).
 
-The physics is the CPU's: the same point functions (materials, tensors, scheme.riemann,
-scheme.limiters, scheme.time) compiled as CUDA device functions by :func:`device`, which
-clones each with a globals table in which the point functions it calls are their device
-copies (as backends.cpu.point does for numba on the CPU). Only the loops differ: one GPU
-thread per node (stress, gradient and limiter, Runge-Kutta stage) or per dual face (fluxes,
-scattered with atomic additions), and small arrays in ``cuda.local.array`` instead of the
-CPU's stack buffers. Kernels are compiled per dimension d and number of reconstructed fields
-m, which are compile-time constants of the closures :func:`kernels` makes.
+The loop bodies are the CPU's: the same sources (scheme.bodies, and the physics they call)
+compiled as CUDA device functions by compiled.device, as compiled.point does for numba on
+the CPU. Only the loops differ: one GPU thread per node (stress, gradient and limiter,
+Runge-Kutta stage) or per dual face (fluxes, scattered with atomic additions), block sums
+in shared memory, and scratch arrays in ``cuda.local.array`` instead of the CPU's stack
+buffers. Kernels are compiled per dimension d, number of reconstructed fields m, limiter and
+edge flux options, which are compile-time constants of the closures :func:`kernels` makes.
+:class:`CUDALoops` implements the stage sequence's loops interface (backends.loops).
 
 The state (v, F, x), the work arrays and the discretisation live on the device for the
 whole run; per stage only a few numbers come back (the boundary power, the force of each
 boundary condition, and at the last stage the next stable time step, the first bad node
 and the monitors), plus the forces of the held nodes when the case has reactions, and the
 prescribed values go up when the loads change in time. The state is copied back only for
-outputs (:meth:`DeviceState.to_host`).
+outputs (:meth:`CUDALoops.to_host`).
 
 Body forces are added on the device. Contact is not: its search and Riemann states are the
 CPU's kernels, run on the host on the contact surfaces' rows of the state (:class:`HostContact`),
@@ -34,7 +34,6 @@ import numpy as np
 
 from ..compiled import device
 from ..physics.limiters import NONE as NO_LIMITER
-from ..physics.runge_kutta import STAGES
 
 #: threads per block of every kernel (a power of two: the block sums halve it); the simulator
 #: runs every thread of a block as a Python thread, so it gets small blocks
@@ -367,8 +366,12 @@ def _blocks(count):
     return max(1, (count + THREADS - 1) // THREADS)
 
 
-class DeviceState:
-    """The state, work arrays and discretisation of an FVStepper on the GPU, and its step."""
+class CUDALoops:
+    """The loops of the FV stage sequence (backends.loops) as CUDA kernels: the state, work
+    arrays and discretisation of an FVStepper on the GPU."""
+
+    #: the last stage does not compute the new state's stress: the next step's first does
+    carries_stress = False
 
     def __init__(self, stepper):
         from numba import cuda as _cuda
@@ -410,10 +413,10 @@ class DeviceState:
         self.first_bad = cuda.device_array(1, np.int64)
         self.monitors = cuda.device_array(s.monitor_buf.shape)
         self.body_start = [int(b) for b in m.body_start]
-        if s.reaction_rows:
-            held = np.unique(s.reaction_sum.indices)
+        if s.energy.reaction_rows:
+            held = np.unique(s.energy.reaction_sum.indices)
             self.held = up(held.astype(np.int64))
-            self.held_sum = s.reaction_sum[:, held]
+            self.held_sum = s.energy.reaction_sum[:, held]
             self.held_force = cuda.device_array((len(held), d))
 
     def loads_up(self):
@@ -438,28 +441,70 @@ class DeviceState:
         for name in ("v", "F", "x"):
             A[name].copy_to_device(getattr(s, name))
 
-    def rates(self, stage=0, stage_time=0.0):
-        """force and dF of the device state; returns (boundary power, bc forces, the forces
-        of the held nodes or None)."""
-        s, m, A, k = self.s, self.s.disc, self.arrays, self.k
-        n = m.n_nodes
+    def loads_changed(self):
+        """The loads were brought to a new time: copy their values up if they vary."""
+        if self.s.loads.varies:
+            self.loads_up()
+
+    def stresses(self, rows):
+        """The stress and packed fields of every node (a device run has one rank)."""
+        A, n = self.arrays, self.s.disc.n_nodes
+        self.k.stress_and_fields[_blocks(n), THREADS](A["F"], A["v"], A["node_material"],
+                                                      A["material_table"], A["sigma"],
+                                                      A["U"], self.pack)
+
+    def pack(self, rows):
+        raise NotImplementedError("the CUDA backend carries no stress between steps")
+
+    def _relaxation_arrays(self):
+        A, m = self.arrays, self.s.disc
+        if "mismatch" not in A:
+            A["mismatch"] = self.cuda.device_array((m.n_nodes, m.dim, m.dim))
+            A["relaxation_weight"] = self.cuda.to_device(self.s.relaxation_weight)
+        return A["mismatch"]
+
+    def gradient(self, with_positions):
+        """scheme.bodies.node_gradient at every node; with ``with_positions`` the
+        relaxation's mismatch D = F - G(x) in the same pass."""
+        A, m = self.arrays, self.s.disc
         own, denominator = m.closure
-        k.stress_and_fields[_blocks(n), THREADS](A["F"], A["v"], A["node_material"],
-                                                 A["material_table"], A["sigma"], A["U"],
-                                                 self.pack)
-        relaxed = s.relaxation_weight is not None
-        if relaxed and "mismatch" not in A:
-            A["mismatch"] = self.cuda.device_array((n, m.dim, m.dim))
-            A["relaxation_weight"] = self.cuda.to_device(s.relaxation_weight)
-        mismatch = A["mismatch"] if relaxed else A["F"]     # written only when relaxed
-        if s.order == 2:
-            # with the relaxation, the positions' mismatch D = F - G(x) in the same pass
-            k.limited_gradient[_blocks(n), THREADS](
-                A["U"], *self.dual, float(own), float(denominator), A["grad"], A["x"],
-                A["F"], mismatch, relaxed)
-        if self.contact is not None:
-            self.contact.stage(stage, stage_time)
-        k.zero_rates[_blocks(n), THREADS](A["force"], A["dF"])
+        mismatch = self._relaxation_arrays() if with_positions else A["F"]  # not written
+        self.k.limited_gradient[_blocks(m.n_nodes), THREADS](
+            A["U"], *self.dual, float(own), float(denominator), A["grad"], A["x"], A["F"],
+            mismatch, with_positions)
+
+    def positions_mismatch(self):
+        """The mismatch alone (order 1): the positions' unlimited gradient pass."""
+        A, m = self.arrays, self.s.disc
+        own, denominator = m.closure
+        mismatch = self._relaxation_arrays()
+        if "positions_gradient" not in A:
+            A["positions_gradient"] = self.cuda.device_array((m.n_nodes, m.dim, m.dim + 1))
+        kernels(m.dim, m.dim, NO_LIMITER).limited_gradient[_blocks(m.n_nodes), THREADS](
+            A["x"], *self.dual, float(own), float(denominator), A["positions_gradient"],
+            A["x"], A["F"], mismatch, True)
+
+    def relax(self):
+        A, n = self.arrays, self.s.disc.n_nodes
+        self.k.relax_towards_positions[_blocks(n), THREADS](
+            A["mismatch"], A["relaxation_weight"], n, A["node_edge_start"],
+            A["node_neighbour"], A["dF"])
+
+    def contact_stage(self, stage, stage_time):
+        self.contact.stage(stage, stage_time)
+
+    def contact_apply(self):
+        self.contact.apply()
+
+    def contact_end_step(self, time):
+        self.contact.end_step(time)
+
+    def fluxes(self):
+        """force and dF of the edges and boundary faces; returns (boundary power, the force
+        of each boundary condition's faces)."""
+        s, m, A, k = self.s, self.s.disc, self.arrays, self.k
+        own, denominator = m.closure
+        k.zero_rates[_blocks(m.n_nodes), THREADS](A["force"], A["dF"])
         self.power.copy_to_device(np.zeros(1))
         self.bc_force.copy_to_device(np.zeros(s.bc_force.shape))
         if m.n_edges:
@@ -475,50 +520,39 @@ class DeviceState:
                 float(denominator), A["bc_fixed"], A["face_velocity"], A["face_traction"],
                 s.tangential_correction, A["face_contact_weight"], A["force"], A["dF"],
                 self.power, self.bc_force)
-        if self.contact is not None:
-            self.contact.apply()
-        if relaxed:
-            # F relaxed towards the gradient of the positions (scheme.bodies.relaxation_change)
-            if s.order != 2:
-                # the positions' gradient pass alone, as the CPU's stepper does at order 1
-                if "positions_gradient" not in A:
-                    A["positions_gradient"] = self.cuda.device_array((n, m.dim, m.dim + 1))
-                kernels(m.dim, m.dim, NO_LIMITER).limited_gradient[_blocks(n), THREADS](
-                    A["x"], *self.dual, float(own), float(denominator),
-                    A["positions_gradient"], A["x"], A["F"], A["mismatch"], True)
-            k.relax_towards_positions[_blocks(n), THREADS](
-                A["mismatch"], A["relaxation_weight"], n, A["node_edge_start"],
-                A["node_neighbour"], A["dF"])
-        if s.loads.has_body_force:
-            # the power of the body force is summed with the boundary power
-            k.body_force[_blocks(n), THREADS](A["force"], self.mass, A["acceleration"],
-                                              A["v"], self.power)
-        power = float(self.power.copy_to_host()[0])
-        # the rate of the energy the rates give, and the power of the forces that the
-        # supports cancel on held components (scheme.stepper: the energy balance)
+        return float(self.power.copy_to_host()[0]), self.bc_force.copy_to_host()
+
+    def body_force(self):
+        """Adds the body forces to force; returns their power."""
+        A, n = self.arrays, self.s.disc.n_nodes
+        self.power.copy_to_device(np.zeros(1))
+        self.k.body_force[_blocks(n), THREADS](A["force"], self.mass, A["acceleration"],
+                                               A["v"], self.power)
+        return float(self.power.copy_to_host()[0])
+
+    def held_forces(self):
+        """The force on each reaction's held nodes, summed per reaction row."""
+        self.k.pack_rows[_blocks(self.held.shape[0]), THREADS](self.arrays["force"],
+                                                               self.held, self.held_force, 0)
+        return self.held_sum @ self.held_force.copy_to_host()
+
+    def update(self, alpha, dt, stage, last, with_monitors):
+        """One Runge-Kutta stage of every node (the first saves the start of the step), with
+        the energy rate of the stage's state read first; at the last stage also the time
+        step, the state check and, when asked, the monitors (backends.loops.StageResult)."""
+        from .loops import StageResult
+
+        s, A, k = self.s, self.arrays, self.k
+        n = s.disc.n_nodes
+        if stage == 0:
+            for name in ("v", "F", "x"):
+                A[name + "0"].copy_to_device(A[name])
         self.energy.copy_to_device(np.zeros(3))
-        last = stage == len(STAGES) - 1
         k.energy_rate[_blocks(n), THREADS](A["v"], A["F"], A["sigma"], A["force"], A["dF"],
                                            A["fixed_mask"], A["v0"], A["F0"], A["volume"],
                                            A["node_material"], A["material_table"],
-                                           float(s.dt), bool(last), self.energy)
-        rate, held_power, integration = self.energy.copy_to_host()
-        self.rate = float(rate)
-        self.integration = float(integration)
-        power -= float(held_power)
-        bc_force = self.bc_force.copy_to_host()
-        held = None
-        if s.reaction_rows:
-            k.pack_rows[_blocks(self.held.shape[0]), THREADS](A["force"], self.held,
-                                                              self.held_force, 0)
-            held = self.held_sum @ self.held_force.copy_to_host()
-        return power, bc_force, held
-
-    def update(self, alpha, dt, last, with_monitors):
-        """One Runge-Kutta stage of every node; at the last stage also (smallest
-        h lambda_min / c_p, first bad node or -1), and the monitors when asked."""
-        s, A, k = self.s, self.arrays, self.k
-        n = s.disc.n_nodes
+                                           float(dt), bool(last), self.energy)
+        rate, held_power, integration = (float(e) for e in self.energy.copy_to_host())
         if last:
             self.smallest.copy_to_device(np.array([np.inf]))
             self.first_bad.copy_to_device(np.array([n], np.int64))
@@ -537,16 +571,12 @@ class DeviceState:
                 A["fixed_mask"], A["fixed_value"], start, stop, A["node_length"], bool(last),
                 bool(with_monitors), self.smallest, self.first_bad, self.monitors, body)
         if not last:
-            return None
+            return StageResult(rate, held_power)
         if with_monitors:
             self.monitors.copy_to_host(s.monitor_buf)
         bad = int(self.first_bad.copy_to_host()[0])
-        return float(self.smallest.copy_to_host()[0]), (bad if bad < n else -1)
-
-    def save_start(self):
-        A = self.arrays
-        for name in ("v", "F", "x"):
-            A[name + "0"].copy_to_device(A[name])
+        return StageResult(rate, held_power, integration, float(self.smallest.copy_to_host()[0]),
+                           bad if bad < n else -1)
 
 
 class HostContact:
@@ -562,7 +592,7 @@ class HostContact:
     def __init__(self, device):
         cuda, A, s = device.cuda, device.arrays, device.s
         self.device, self.s, self.system = device, s, s.contact
-        n, d = s.disc.n_nodes, s.disc.dim
+        n = s.disc.n_nodes
         self.nodes = s.contact.surface_nodes.astype(np.int64)
         self.faces = s.contact.faces.astype(np.int64)
         self.nodes_dev = cuda.to_device(self.nodes)
