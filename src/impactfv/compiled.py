@@ -83,39 +83,33 @@ def point(f, inline: bool = True):
     that matters. On a hot path a call costs about 50 ns (the arrays are passed field by
     field): the node loops ran twice as slow (docs/performance.md, "Compilation").
     """
-    key = (f, inline)
-    if key in _compiled:
-        return _compiled[key]
-    table = dict(f.__globals__)
-    clone = types.FunctionType(f.__code__, table, f.__name__, f.__defaults__, f.__closure__)
-    clone.__module__ = f.__module__
-    clone.__qualname__ = f.__qualname__
-    compiled = _compiled[key] = njit(cache=True, inline="always" if inline else "never")(clone)
-    for name in f.__code__.co_names:
-        g = table.get(name)
-        if isinstance(g, types.FunctionType) and g.__module__.startswith("impactfv."):
-            table[name] = point(g)
-    return compiled
+    compile_copy = njit(cache=True, inline="always" if inline else "never")
+    return _compiled_copy(f, (f, inline), compile_copy, point)
 
 
 def device(f):
     """The CUDA device-function copy of point function ``f`` (compiled once, when the
     first CUDA kernels are made), its calls to other point functions made to their device
     copies as in :func:`point`. numba-cuda is imported here, only when asked for."""
-    key = (f, "cuda")
-    if key in _compiled:
-        return _compiled[key]
     from numba import cuda as _cuda
 
+    return _compiled_copy(f, (f, "cuda"), _cuda.jit(device=True), device)
+
+
+def _compiled_copy(f, key, compile_copy, copy_of):
+    """``compile_copy`` of a clone of ``f`` whose globals name ``copy_of`` each impactfv
+    function it calls (once per ``key``)."""
+    if key in _compiled:
+        return _compiled[key]
     table = dict(f.__globals__)
     clone = types.FunctionType(f.__code__, table, f.__name__, f.__defaults__, f.__closure__)
     clone.__module__ = f.__module__
     clone.__qualname__ = f.__qualname__
-    compiled = _compiled[key] = _cuda.jit(device=True)(clone)
+    compiled = _compiled[key] = compile_copy(clone)
     for name in f.__code__.co_names:
         g = table.get(name)
         if isinstance(g, types.FunctionType) and g.__module__.startswith("impactfv."):
-            table[name] = device(g)
+            table[name] = copy_of(g)
     return compiled
 
 

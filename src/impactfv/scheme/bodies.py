@@ -334,18 +334,27 @@ def gradient_sums(a, U, x, dual, own, inverse_denominator, with_positions, scrat
             hi[i] = max(hi[i], U[b, i])
     for h in range(bface_start[a], bface_start[a + 1]):
         # the closure's mean as a product (1/8 is exact in 3D)
-        for i in range(m):
-            temp[i] = own * ua[i]
-        for q in range(d - 1):
-            o = bface_others[h, q]
+        if d == 3:
             for i in range(m):
-                temp[i] += U[o, i]
-        for i in range(m):
-            temp[i] *= inverse_denominator
-        for J in range(d):
-            c = bface_C[h, J]
+                temp[i] = own * ua[i]
+            for q in range(d - 1):
+                o = bface_others[h, q]
+                for i in range(m):
+                    temp[i] += U[o, i]
             for i in range(m):
-                g[slot(i, J, d, m)] += temp[i] * c
+                temp[i] *= inverse_denominator
+            for J in range(d):
+                c = bface_C[h, J]
+                for i in range(m):
+                    g[slot(i, J, d, m)] += temp[i] * c
+        else:
+            for i in range(m):
+                mean = own * ua[i]
+                for q in range(d - 1):
+                    mean += U[bface_others[h, q], i]
+                mean *= inverse_denominator
+                for J in range(d):
+                    g[slot(i, J, d, m)] += mean * bface_C[h, J]
         if with_positions:
             for i in range(d):
                 mean = own * x[a, i]
@@ -382,15 +391,24 @@ def limited_gradient_of_node(a, dual, kind, scratch, grad):
             rise[i] = 0.0
             fall[i] = 0.0
         for k in range(node_edge_start[a], node_edge_start[a + 1]):
-            for i in range(m):
-                temp[i] = 0.0
-            for J in range(d):
-                offset = node_half[k, J]
+            if d == 3:
+                # the fields innermost, on contiguous sums (vector instructions)
                 for i in range(m):
-                    temp[i] += g[slot(i, J, d, m)] * offset
-            for i in range(m):
-                rise[i] = max(rise[i], temp[i])
-                fall[i] = min(fall[i], temp[i])
+                    temp[i] = 0.0
+                for J in range(d):
+                    offset = node_half[k, J]
+                    for i in range(m):
+                        temp[i] += g[slot(i, J, d, m)] * offset
+                for i in range(m):
+                    rise[i] = max(rise[i], temp[i])
+                    fall[i] = min(fall[i], temp[i])
+            else:
+                for i in range(m):
+                    change = 0.0
+                    for J in range(d):
+                        change += g[slot(i, J, d, m)] * node_half[k, J]
+                    rise[i] = max(rise[i], change)
+                    fall[i] = min(fall[i], change)
         for i in range(m):
             u = ua[i]
             # a change below 1e-10 of the local range needs no limiting; without this
