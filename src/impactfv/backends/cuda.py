@@ -372,6 +372,8 @@ class CUDALoops:
 
     #: the last stage does not compute the new state's stress: the next step's first does
     carries_stress = False
+    #: the state lives on the device; to_host copies it into the stepper's arrays
+    state_on_host = False
 
     def __init__(self, stepper):
         from numba import cuda as _cuda

@@ -42,6 +42,8 @@ class CPULoops:
 
     #: the last stage leaves the new state's stress (rk_update_last)
     carries_stress = True
+    #: the stepper's arrays v, F, x are the state
+    state_on_host = True
 
     def __init__(self, stepper):
         self.s = stepper

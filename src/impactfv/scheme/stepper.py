@@ -180,7 +180,8 @@ class FVStepper(FVOutputs):
         """Momentum and deformation-gradient rates (force, dF = Omega dF/dt) of the current
         state, at the stage's time (the loads are brought to it by the caller). Returns this
         rank's power of the boundary tractions and body forces, and the reactions of the
-        stage (or None), which _close_stage completes with what the update returns.
+        stage (or None), which EnergyBook.close_stage completes with what the update
+        returns.
         ``stress_carried``: the owned nodes' sigma (and U) are those of the current state
         already (written by the last stage of the step that made it)."""
         m, loops = self.disc, self.loops
@@ -207,11 +208,7 @@ class FVStepper(FVOutputs):
         if self.contact is not None:
             loops.contact_apply()
         if relaxed:
-            if self.order != 2:
-                loops.positions_mismatch()
-            # the owned nodes' differences read their ghost neighbours' mismatch (MPI)
-            self._exchange_mismatch()
-            loops.relax()
+            self._relax_towards_positions(gradient_done=self.order == 2)
         if self.loads.has_body_force:
             power += loops.body_force()
         reactions = None
@@ -225,6 +222,7 @@ class FVStepper(FVOutputs):
         of the fields wrote D already (order 2)."""
         if not gradient_done:
             self.loops.positions_mismatch()
+        # the owned nodes' differences read their ghost neighbours' mismatch (MPI)
         self._exchange_mismatch()
         self.loops.relax()
 
@@ -301,7 +299,7 @@ class FVStepper(FVOutputs):
         self._next_dt = self.cfl * self._min(result.smallest)
         self._bad = self._first_bad(result.bad)
         self._monitors_fresh = bool(self.history_due)
-        self._host_stale = not isinstance(loops, CPULoops)
+        self._host_stale = not loops.state_on_host
         self.time = t + dt
         energy.close_step(dt, loads, held_start, held_momentum)
         if self.contact is not None:
