@@ -144,8 +144,8 @@ def test_history_every_n_steps_keeps_the_first_and_last_rows(tmp_path):
     assert steps % 7 != 0 and sparse.summary["steps"] == steps
     expected = list(range(0, steps + 1, 7)) + [steps]
     assert np.array_equal(sparse.history["time"], full.history["time"][expected])
-    # the same rows; a row the sparse run computes after the step (kernels.monitors) rather
-    # than in the last stage's pass (kernels.rk_update_last) may round its sums differently
+    # the same rows; a row the sparse run computes after the step (backends.cpu.monitors) rather
+    # than in the last stage's pass (backends.cpu.rk_update_last) may round its sums differently
     # where the compiler contracts them into fused multiply-adds differently
     np.testing.assert_allclose(sparse.history["total_energy"],
                                full.history["total_energy"][expected], rtol=1e-14, atol=0)

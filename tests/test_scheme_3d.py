@@ -101,7 +101,7 @@ def test_stretch_bounds_enclose_the_smallest_stretch():
 
 def test_time_step_from_the_bounds_equals_every_node_evaluated():
     """In 3D the last stage evaluates the smallest stretch only at the nodes whose lower bound
-    can give the minimum (kernels.smallest_time_step_of_candidates): the stable time step is
+    can give the minimum (backends.cpu.smallest_time_step_of_candidates): the stable time step is
     the one of evaluating every node with the same kernel (upper bound infinite), to the last
     bit, step after step of a deforming, spinning block."""
     from impactfv.backends import cpu as K

@@ -292,7 +292,7 @@ def test_compatibility_relaxation_does_no_work_under_a_uniform_stress():
 @pytest.mark.parametrize("dim", [2, 3])
 def test_the_gradient_pass_gives_the_relaxation_the_mismatch_of_f_and_the_positions(dim):
     """At order 2 the gradient pass of the reconstructed fields also writes the relaxation's
-    mismatch D = F - G(x) (kernels.limited_gradient, with_positions). For positions that are
+    mismatch D = F - G(x) (backends.cpu.limited_gradient, with_positions). For positions that are
     a linear map of the reference ones, x = A X + b, the Green-Gauss gradient is A exactly, so
     D = F - A at every node, boundary nodes included; for any positions D equals what the
     positions-only pass (order 1) gives."""

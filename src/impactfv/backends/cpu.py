@@ -27,7 +27,7 @@ from ..physics.tensors import symmetric_index as _symmetric_index
 from ..scheme import bodies as B
 
 cauchy_stress = point(M.cauchy_stress)
-# cold paths (on-demand monitors, output fields): called, not inlined (backends.cpu.point)
+# cold paths (on-demand monitors, output fields): called, not inlined (compiled.point)
 strain_energy_density = point(M.strain_energy_density, inline=False)
 cauchy_stress_and_energy = point(M.cauchy_stress_and_energy)
 pressure_and_von_mises = point(M.pressure_and_von_mises, inline=False)

@@ -102,7 +102,7 @@ class FVOutputs:
         if self.contact is not None:
             arrays["contact_memory"] = self.contact.memory
         if self._stress_carried:
-            # the stress the last stage computed for the next step (kernels.rk_update_last):
+            # the stress the last stage computed for the next step (backends.cpu.rk_update_last):
             # the continued run uses it as the uninterrupted one does, to the last bit
             arrays["sigma"] = self.sigma
         return arrays

@@ -2,7 +2,7 @@
 
 It plugs into the run pipeline (impactfv.pipeline) like the FE steppers do: the pipeline
 owns the time loop, the output and checkpoint schedule and the files; the stepper owns the
-physics of a step. Data flows one way: case -> Discretisation -> state -> kernels.
+physics of a step. Data flows one way: case -> Discretisation -> state -> loops (backends).
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ class FVStepper(FVOutputs):
         self.limiter = LIMITER_IDS[case.run.limiter]
         self.cfl = case.run.cfl
         self.upwind_geometric = case.run.geometric_flux == "upwind"
-        # U-MUSCL blend of the reconstruction (kernels._flux_edge)
+        # U-MUSCL blend of the reconstruction (scheme.bodies.edge_flux)
         self.bias = float(case.run.muscl_chi)
         self.switch = float(case.run.smooth_switch)
         # normal-only keeps compressed free surfaces from folding in 2D; in 3D the tangential
@@ -103,7 +103,7 @@ class FVStepper(FVOutputs):
         self.force = np.empty((n, d))
         self.dF = np.empty((n, d, d))
         self.monitor_buf = np.zeros((len(m.bodies), 2 + d))
-        # 3D: each node's lower bound of h lambda_min / c_p (kernels.rk_update_last)
+        # 3D: each node's lower bound of h lambda_min / c_p (backends.cpu.rk_update_last)
         self.stretch_bound = np.empty(n if d == 3 else 0)
         # what the last stage computed of the new state (rk_update_last): the next stable
         # time step, the first bad node, the monitors; None / False when not computed for
