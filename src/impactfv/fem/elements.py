@@ -9,11 +9,14 @@ All kernels work on global (all-bodies concatenated) arrays:
   shape-function gradients at the integration points, ``wj (M,ngp)`` weight * reference
   Jacobian, ``area0 (M,)`` reference element area, ``emat (M,)`` material row, ``mtab`` the
   material table of :mod:`impactfv.physics.materials`.
+
+The compiled step takes the element arrays as one bundle, :class:`Elements`.
 """
 
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -27,8 +30,12 @@ _pressure_and_von_mises = point(M.pressure_and_von_mises)
 _cauchy_stress = point(M.cauchy_stress)
 CP = M.CP
 
+#: the element arrays of the mesh (see above), bundled for the compiled step
+Elements = namedtuple("Elements", ["cells", "grads", "wj", "area0", "emat", "mtab"])
 
-@njit(cache=True)
+
+# the per-element helpers are inlined: a call per element cost 10-20 % of the element loops
+@njit(cache=True, inline="always")
 def _shoelace(x, cells, e):
     k = cells.shape[1]
     a = 0.0
@@ -39,7 +46,7 @@ def _shoelace(x, cells, e):
     return 0.5 * a
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _deformation_gradient(x, cells, grads, e, g):
     f11 = 0.0
     f12 = 0.0
@@ -67,16 +74,57 @@ def _stress(f11, f12, f21, f22, props, Fm, P):
     return P[0, 0], P[0, 1], P[1, 0], P[1, 1]
 
 
-@njit(cache=True)
-def internal_forces(x, cells, grads, wj, area0, emat, mtab, f):
-    """Assemble internal nodal forces ``f`` (= dE/dx, overwritten) of the whole mesh.
+@njit(cache=True, inline="always")
+def _longest_side(x, cells, e, k):
+    """The longest side of element e (k nodes; a literal k unrolls the loop)."""
+    lmax = 0.0
+    for i in range(k):
+        p = cells[e, i]
+        q = cells[e, (i + 1) % k]
+        d = math.sqrt((x[q, 0] - x[p, 0]) ** 2 + (x[q, 1] - x[p, 1]) ** 2)
+        if d > lmax:
+            lmax = d
+    return lmax
 
-    Returns ``(strain_energy, min_e(l_e / c_e), min J)`` where l_e is the current
-    characteristic length (2a/longest side for T3, a/longest side for Q4) and c_e the
-    reference p-wave speed of the element's material.
-    """
-    f[:, :] = 0.0
-    k = cells.shape[1]
+
+@njit(cache=True)
+def _t3_forces(x, cells, grads, wj, area0, emat, mtab, f):
+    """:func:`internal_forces` of a T3 mesh: f_I += A0 P(F) grad0 N_I, l_e = 2a/longest
+    side."""
+    energy = 0.0
+    dtlim = np.inf
+    jmin = np.inf
+    Fm = local_matrix(2)
+    P = local_matrix(2)
+    for e in range(cells.shape[0]):
+        m = emat[e]
+        props = mtab[m]
+        a = _shoelace(x, cells, e)
+        jbar = a / area0[e]
+        if jbar < jmin:
+            jmin = jbar
+        r = (2.0 * a / _longest_side(x, cells, e, 3)) / mtab[m, CP]
+        if r < dtlim:
+            dtlim = r
+        f11, f12, f21, f22 = _deformation_gradient(x, cells, grads, e, 0)
+        p11, p12, p21, p22 = _stress(f11, f12, f21, f22, props, Fm, P)
+        w = wj[e, 0]
+        energy += w * _energy(Fm, props)
+        for i in range(3):
+            n = cells[e, i]
+            g1 = grads[e, 0, i, 0]
+            g2 = grads[e, 0, i, 1]
+            f[n, 0] += w * (p11 * g1 + p12 * g2)
+            f[n, 1] += w * (p21 * g1 + p22 * g2)
+    return energy, dtlim, jmin
+
+
+@njit(cache=True)
+def _q4md_forces(x, cells, grads, wj, area0, emat, mtab, f):
+    """:func:`internal_forces` of a mean-dilatation Q4 mesh (see impactfv.fem.stepper for
+    the derivation): per Gauss point the isochoric part
+    w j0 s [Pbar grad0 N_I - 1/2 (Pbar:F) F^-T grad0 N_I], then per element the volumetric
+    part coef da/dx_I; l_e = a/longest side."""
     ngp = grads.shape[1]
     energy = 0.0
     dtlim = np.inf
@@ -90,43 +138,17 @@ def internal_forces(x, cells, grads, wj, area0, emat, mtab, f):
         jbar = a / area0[e]
         if jbar < jmin:
             jmin = jbar
-        # characteristic length for the stable time step
-        lmax = 0.0
-        for i in range(k):
-            p = cells[e, i]
-            q = cells[e, (i + 1) % k]
-            d = math.sqrt((x[q, 0] - x[p, 0]) ** 2 + (x[q, 1] - x[p, 1]) ** 2)
-            if d > lmax:
-                lmax = d
-        le = (2.0 * a / lmax) if k == 3 else (a / lmax)
-        r = le / mtab[m, CP]
+        r = (a / _longest_side(x, cells, e, 4)) / mtab[m, CP]
         if r < dtlim:
             dtlim = r
-        if k == 3:
-            f11, f12, f21, f22 = _deformation_gradient(x, cells, grads, e, 0)
-            p11, p12, p21, p22 = _stress(f11, f12, f21, f22, props, Fm, P)
-            w = wj[e, 0]
-            energy += w * _energy(Fm, props)
-            for i in range(3):
-                n = cells[e, i]
-                g1 = grads[e, 0, i, 0]
-                g2 = grads[e, 0, i, 1]
-                f[n, 0] += w * (p11 * g1 + p12 * g2)
-                f[n, 1] += w * (p21 * g1 + p22 * g2)
-            continue
-        # ---- Q4 with mean dilatation (see impactfv.fem.stepper for the derivation)
         coef = 0.0
         for g in range(ngp):
             f11, f12, f21, f22 = _deformation_gradient(x, cells, grads, e, g)
             J = f11 * f22 - f12 * f21
             if J < jmin:
                 jmin = J
-            s = math.sqrt(jbar / J)
-            b11 = s * f11
-            b12 = s * f12
-            b21 = s * f21
-            b22 = s * f22
-            p11, p12, p21, p22 = _stress(b11, b12, b21, b22, props, Fm, P)
+            s = math.sqrt(jbar / J)  # Fbar = s F
+            p11, p12, p21, p22 = _stress(s * f11, s * f12, s * f21, s * f22, props, Fm, P)
             w = wj[e, g]
             energy += w * _energy(Fm, props)
             pf = p11 * f11 + p12 * f12 + p21 * f21 + p22 * f22  # Pbar : F
@@ -145,6 +167,7 @@ def internal_forces(x, cells, grads, wj, area0, emat, mtab, f):
                 f[n, 1] += ws * (p21 * g1 + p22 * g2 - h * (c21 * g1 + c22 * g2))
             coef += ws * 0.5 * pf / jbar
         coef /= area0[e]
+        # da/dx_I = 1/2 (y_{I+1} - y_{I-1}, x_{I-1} - x_{I+1})
         for i in range(4):
             n = cells[e, i]
             nn = cells[e, (i + 1) % 4]
@@ -152,6 +175,20 @@ def internal_forces(x, cells, grads, wj, area0, emat, mtab, f):
             f[n, 0] += coef * 0.5 * (x[nn, 1] - x[np_, 1])
             f[n, 1] += coef * 0.5 * (x[np_, 0] - x[nn, 0])
     return energy, dtlim, jmin
+
+
+@njit(cache=True)
+def internal_forces(x, cells, grads, wj, area0, emat, mtab, f):
+    """Assemble internal nodal forces ``f`` (= dE/dx, overwritten) of the whole mesh.
+
+    Returns ``(strain_energy, min_e(l_e / c_e), min J)`` where l_e is the current
+    characteristic length (2a/longest side for T3, a/longest side for Q4) and c_e the
+    reference p-wave speed of the element's material.
+    """
+    f[:, :] = 0.0
+    if cells.shape[1] == 3:
+        return _t3_forces(x, cells, grads, wj, area0, emat, mtab, f)
+    return _q4md_forces(x, cells, grads, wj, area0, emat, mtab, f)
 
 
 @njit(cache=True)

@@ -93,8 +93,10 @@ from ..physics.materials import N_PROPS, Material
 from ..mesh.core import Mesh
 from ..mesh.edges import boundary_facets, unique_edges
 from ..mesh.generators import quads_to_triangles, rectangle_quads
-from .elements import (element_pressure_von_mises, element_stress_and_J, internal_forces,
-                       nodal_average)
+from .contact import ContactPasses, ContactWork
+from .elements import (Elements, element_pressure_von_mises, element_stress_and_J,
+                       internal_forces, nodal_average)
+from .verlet import NodeData, State
 from .verlet import step as verlet_step
 
 CONTACT_MAX_ITER = 50
@@ -339,6 +341,11 @@ class FEStepper:
         self.kinetic = float(0.5 * np.sum(self.mass * np.sum(self.v ** 2, axis=1)))
         self.momentum = self.mass @ self.v
         self.contact_energy = 0.0
+        # the compiled step's bundles, of the very arrays above (it writes x, v, acc, f)
+        self._state = State(self.x, self.v, self.acc, self.f)
+        self._nodes = NodeData(self.mass, self.minv, self.fmask, self.fval)
+        self._elements = Elements(self.cells, self.grads, self.wj, self.area0, self.emat,
+                                  self.mtab)
 
     def _contact_passes(self, contacts):
         """Two passes per contact (nodes of a against segments of b and vice versa)."""
@@ -367,7 +374,7 @@ class FEStepper:
                 pdep.append(depth)
         self.n_contacts = len(contacts)
         nn = len(X)
-        self.passes = (
+        self.passes = ContactPasses(
             np.array(sl_ptr, dtype=np.int64),
             np.concatenate(sl_nodes).astype(np.int64) if sl_nodes else np.zeros(0, np.int64),
             np.array(sg_ptr, dtype=np.int64),
@@ -376,12 +383,13 @@ class FEStepper:
             np.concatenate(se).astype(np.int64) if se else np.zeros((0, 2), np.int64),
             np.array(pc, dtype=np.int64), np.array(pa, dtype=np.bool_),
             np.array(pdep, dtype=np.float64))
-        ncap = max(len(self.passes[1]), 1)
-        self.work = (np.zeros((nn, 2)), np.zeros((nn, 2)), np.empty((ncap, 3), np.int64),
-                     np.empty(ncap), np.empty((ncap, 2)), np.empty(ncap, np.int64))
+        ncap = max(len(self.passes.slave_nodes), 1)
+        self.work = ContactWork(np.zeros((nn, 2)), np.zeros((nn, 2)),
+                                np.empty((ncap, 3), np.int64), np.empty(ncap),
+                                np.empty((ncap, 2)), np.empty(ncap, np.int64))
         self.cforce = np.zeros((max(self.n_contacts, 1), 2))
         self.cgap = np.full(max(self.n_contacts, 1), np.nan)
-        self.tol = CONTACT_TOL_REL * (float(self.passes[-1].min()) if len(pdep) else 1.0)
+        self.tol = CONTACT_TOL_REL * (float(self.passes.depth.min()) if len(pdep) else 1.0)
 
     @classmethod
     def from_case(cls, case):
@@ -418,13 +426,12 @@ class FEStepper:
     def stable_dt(self) -> float:
         return self.cfl * self.dtlim
 
-    def step(self, dt: float):
-        normals, xp, cons_n, cons_xi, cons_nrm, cons_p = self.work
+    def step(self, dt: float, with_monitors: bool = True):
+        """One step of size dt (``with_monitors``, whether a history row follows, is
+        accepted for the time loop's sake: the step computes its monitors anyway)."""
         (self.strain, self.kinetic, px, py, dke, self.dtlim, self.jmin, _) = verlet_step(
-            self.x, self.v, self.acc, self.f, self.minv, self.mass, self.fmask, self.fval, dt,
-            self.cells, self.grads, self.wj, self.area0, self.emat, self.mtab, *self.passes,
-            normals, xp, cons_n, cons_xi, cons_nrm, cons_p, self.cforce, self.cgap,
-            CONTACT_MAX_ITER, self.tol)
+            self._state, self._nodes, self._elements, self.passes, self.work, self.cforce,
+            self.cgap, dt, CONTACT_MAX_ITER, self.tol)
         self.momentum = np.array([px, py])
         self.contact_energy -= dke
 
