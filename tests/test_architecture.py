@@ -212,28 +212,17 @@ LONG_OR_WIDE = {
     "backends/cuda.py:_make_kernels": "the CUDA kernels as closures over their compile-time "
                                       "constants (d, m, limiter, flux options)",
     "mesh/abaqus.py:read_inp": "one pass over the keyword lines of an .inp file",
-    "fem/contact.py:contact_correct": "the FE baselines' own contact algorithm",
     "pipeline/run.py:_run_stepper": "the time loop with its schedule and signals",
-    "scheme/stepper.py:__init__": "the FV state and bookkeeping (to be split in three)",
-    "contact/riemann_step.py:piece_states": "contact pieces: 32 arrays, to be bundled",
     "mesh/core.py:validate_and_orient": "mesh checks with their messages",
-    "contact/overlap.py:_pieces_3d": "3D dual-face clipping against partner facets",
-    "contact/overlap.py:_pieces_2d": "2D dual-face pieces: arrays to be bundled",
-    "contact/overlap.py:contact_pieces": "contact pieces: arrays to be bundled",
     "backends/cpu.py:rk_update_last": "the fused last stage: update, time step, checks, "
                                       "monitors and the carried stress in one pass",
-    "fem/elements.py:internal_forces": "T3 and Q4 mean-dilatation forces in one loop",
-    "fem/verlet.py:step": "the FE baselines' step: arrays to be bundled",
-    "contact/riemann_step.py:wall_pass": "contact against walls: arrays to be bundled",
     "backends/cuda.py:rk_update": "a CUDA kernel takes arrays, not bundles",
     "backends/cuda.py:boundary_fluxes": "a CUDA kernel takes arrays, not bundles",
     "backends/cuda.py:limited_gradient": "a CUDA kernel takes arrays, not bundles",
-    "contact/search.py:find_partners": "the partner search: arrays to be bundled",
     "scheme/bodies.py:boundary_face_flux": "a body reads its face's rows by index (no views)",
     "scheme/bodies.py:node_update": "a body reads its node's rows by index (no views)",
     "scheme/bodies.py:edge_flux": "a body reads its edge's rows by index (no views)",
     "physics/contact_laws.py:contact_state": "both sides' states and scratch of one pair",
-    "backends/cpu.py:assemble_rates": "state, rates and bundles of one stage",
     "backends/cpu.py:_interior_fluxes": "the edge flux's inputs and the node-run sums",
 }
 

@@ -9,6 +9,7 @@ from conftest import COPPER, COPPER_03, SOFT
 from impactfv import InputError, load_case, run
 from impactfv.contact.driver import SELF_CONTACT_DEEPEST
 from impactfv.contact.overlap import contact_pieces
+from impactfv.contact.search import Bins
 from impactfv.geometry.bins import build_bins
 from impactfv.mesh.dual import median_dual
 from impactfv.mesh.generators import rectangle
@@ -282,14 +283,9 @@ def test_contact_pieces_do_not_reach_across_a_thin_wall(shape):
     bins = build_bins(x, facets, contact.pad)
 
     def pieces_of_a(deepest):
-        count = contact_pieces(x, X, pair.surfaces[0].nodes, contact.partner,
-                               contact.partner_dist, contact.normal, phi, contact.face_start,
-                               contact.face_list, stepper.disc.bface_others,
-                               stepper.disc.bface_C, contact.straightness, facets, *bins,
-                               contact.piece_node, contact.piece_face, contact.piece_partner,
-                               contact.piece_segment, contact.piece_length,
-                               contact.piece_face_length, contact.piece_normal, *pair.skip,
-                               contact.pad, deepest)
+        count = contact_pieces(x, contact.disc_arrays, pair.surfaces[0].nodes, contact.found,
+                               phi, contact.contact_faces, contact.straightness, facets,
+                               Bins(*bins), contact.pieces, pair.skip, contact.pad, deepest)
         assert count <= len(contact.piece_node)
         return np.count_nonzero(contact.piece_node[:count] == a)
 

@@ -302,11 +302,11 @@ def test_the_gradient_pass_gives_the_relaxation_the_mismatch_of_f_and_the_positi
     A = np.eye(dim) + 0.1 * rng.standard_normal((dim, dim))
     st.F[:] = F0 + 1e-3 * rng.standard_normal(st.F.shape)
     st.x[:] = m.X @ A.T + 1e-3
-    st._forget_state_values()
+    st.state_changed()
     st.rates()
     assert np.abs(st.mismatch - (st.F - A)).max() < 1e-12
     st.x[:] += 2e-5 * rng.standard_normal(m.X.shape)
-    st._forget_state_values()
+    st.state_changed()
     st.rates()
     fused = st.mismatch.copy()
     st.mismatch[:] = 0.0

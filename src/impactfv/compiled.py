@@ -68,6 +68,14 @@ def dim_tag(dim: int) -> tuple:
 _compiled = {}
 
 
+def variant(enabled: bool) -> tuple:
+    """A compile-time option of compiled code: ``if option:`` is decided when numba
+    specialises the function on the option's type (an empty tuple is false, a one-element
+    tuple true), so that each option set compiles its own code, without the branch, as
+    dim_tag does for the dimension."""
+    return (0,) if enabled else ()
+
+
 def point(f, inline: bool = True):
     """The numba-compiled copy of point function ``f`` (compiled once, cached on disk).
 

@@ -43,9 +43,10 @@ node_gradient = point(B.node_gradient)
 node_update = point(B.node_update)
 relaxation_change = point(B.relaxation_change)
 node_energy_rate = point(B.node_energy_rate)
+node_monitors = point(B.node_monitors)
 stage_change = point(B.stage_change)
 
-RHO, CP, CS = M.RHO, M.CP, M.CS
+CP = M.CP
 
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
@@ -164,14 +165,14 @@ def _store_node_sums(force_a, dF_a, force, dF, a, d):
 
 @njit(cache=True, parallel=True, fastmath=KERNEL_FASTMATH)
 def assemble_rates(v, F, sigma, grad, node_material, table, edge_mesh, face_mesh, boundary,
-                   options, contact_state, bface_contact_weight, force, dF, power, bc_force,
-                   dim):
+                   options, contact_state, bface_contact_weight, out, dim):
     """Accumulate the momentum flux (force on each dual cell) and Omega dF/dt of every
     interior edge (scheme.bodies.edge_flux) and dual boundary face
-    (scheme.bodies.boundary_face_flux); into power[0] the power of the boundary tractions,
-    sum over the dual boundary faces of t^C . v^C |C| (zero on free faces, the work of a
-    clamp or of a prescribed traction elsewhere); into bc_force (nbc, d) the force of each
-    boundary condition's faces on the body.
+    (scheme.bodies.boundary_face_flux) into ``out`` = (force, dF, power, bc_force): into
+    power[0] the power of the boundary tractions, sum over the dual boundary faces of
+    t^C . v^C |C| (zero on free faces, the work of a clamp or of a prescribed traction
+    elsewhere); into bc_force (nbc, d) the force of each boundary condition's faces on the
+    body.
 
     edge_mesh: (edges, C, C_len, half, edge_offsets); face_mesh: (bface_node, bface_others,
     bface_C, bface_bc, closure); boundary: (bc_fixed, prescribed_velocity,
@@ -181,17 +182,25 @@ def assemble_rates(v, F, sigma, grad, node_material, table, edge_mesh, face_mesh
     the rest."""
     d = len(dim)
     edges, C, C_len, half, edge_offsets = edge_mesh
+    force, dF, power, bc_force = out
     for a in prange(force.shape[0]):
         for i in range(d):
             force[a, i] = 0.0
             for J in range(d):
                 dF[a, i, J] = 0.0
+    # the variants (compiled.variant tags: one specialisation per option set) as constants
+    # that the parallel loop takes as it takes d
+    reconstruct, stress_reconstructed, upwind_geometric = (
+        len(options[0]), len(options[1]), len(options[2]))
+    bias, switch = options[3], options[4]
     nb = edge_offsets.shape[0] - 2
     for k in prange(nb):
         _interior_fluxes(k, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-                         edge_offsets, options, contact_state, force, dF, d)
+                         edge_offsets, (reconstruct, stress_reconstructed, upwind_geometric,
+                                        bias, switch), contact_state, force, dF, d)
     _interior_fluxes(nb, v, F, sigma, grad, node_material, table, edges, C, C_len, half,
-                     edge_offsets, options, contact_state, force, dF, d)
+                     edge_offsets, (reconstruct, stress_reconstructed, upwind_geometric, bias,
+                                    switch), contact_state, force, dF, d)
     power[0] = _boundary_fluxes(v, F, sigma, node_material, table, face_mesh, boundary,
                                 bface_contact_weight, force, dF, bc_force, d)
 
@@ -351,16 +360,13 @@ def rk_update_last(alpha, dt, start, state, rates, contact_state, contact_xdot, 
                     for j in range(i, d):
                         U[a, d + symmetric_index(i, j, d)] = sa[i, j]
             if with_monitors:
-                mass = props[RHO] * volume[a]
-                v2 = 0.0
-                for i in range(d):
-                    v2 += v[a, i] * v[a, i]
-                kinetic += 0.5 * mass * v2
-                strain += volume[a] * energy
-                p0 += mass * v[a, 0]
-                p1 += mass * v[a, 1]
-                if d == 3:
-                    p2 += mass * v[a, d - 1]
+                node_kinetic, node_strain, m0, m1, m2 = node_monitors(a, v, props, volume,
+                                                                      energy)
+                kinetic += node_kinetic
+                strain += node_strain
+                p0 += m0
+                p1 += m1
+                p2 += m2
         if with_monitors:
             out[k, 0] = kinetic
             out[k, 1] = strain
@@ -415,18 +421,15 @@ def monitors(v, F, node_material, table, volume, body_start, out, dim):
         p2 = 0.0
         for a in prange(body_start[k], body_start[k + 1]):
             props = table[node_material[a]]
-            mass = props[RHO] * volume[a]
-            v2 = 0.0
-            for i in range(d):
-                v2 += v[a, i] * v[a, i]
-            kinetic += 0.5 * mass * v2
             Fa = local_matrix(d)
             load_matrix(F, a, Fa)
-            strain += volume[a] * strain_energy_density(Fa, props)
-            p0 += mass * v[a, 0]
-            p1 += mass * v[a, 1]
-            if d == 3:
-                p2 += mass * v[a, d - 1]
+            node_kinetic, node_strain, m0, m1, m2 = node_monitors(
+                a, v, props, volume, strain_energy_density(Fa, props))
+            kinetic += node_kinetic
+            strain += node_strain
+            p0 += m0
+            p1 += m1
+            p2 += m2
         out[k, 0] = kinetic
         out[k, 1] = strain
         out[k, 2] = p0

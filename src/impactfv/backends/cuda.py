@@ -94,9 +94,10 @@ def _make_kernels(d, m, kind, options):
     node_gradient = device(B.node_gradient)
     node_update = device(B.node_update)
     node_energy_rate = device(B.node_energy_rate)
+    node_monitors = device(B.node_monitors)
     stage_change = device(B.stage_change)
     relaxation_change = device(B.relaxation_change)
-    RHO, CP = M.RHO, M.CP
+    CP = M.CP
     NMON = 2 + d
     RECONSTRUCT, STRESS_RECONSTRUCTED, UPWIND_GEOMETRIC = options
     EDGE_ROWS, EDGE_FORCE, EDGE_VELOCITY = B.EDGE_WORK_ROWS, B.EDGE_FORCE, B.EDGE_VELOCITY
@@ -241,14 +242,10 @@ def _make_kernels(d, m, kind, options):
                     cuda.atomic.min(first_bad, 0, a)
                 low[tid] = node_length[a] * min_stretch(Fa) / props[CP]
                 if with_monitors:
-                    mass = props[RHO] * volume[a]
-                    v2 = 0.0
-                    for i in range(d):
-                        v2 += v[a, i] * v[a, i]
-                    part[tid, 0] = 0.5 * mass * v2
-                    part[tid, 1] = volume[a] * strain_energy_density(Fa, props)
-                    for i in range(d):
-                        part[tid, 2 + i] = mass * v[a, i]
+                    values = node_monitors(a, v, props, volume,
+                                           strain_energy_density(Fa, props))
+                    for j in range(NMON):
+                        part[tid, j] = values[j]
         if not with_checks:
             return
         cuda.syncthreads()
@@ -372,8 +369,6 @@ class CUDALoops:
 
     #: the last stage does not compute the new state's stress: the next step's first does
     carries_stress = False
-    #: the state lives on the device; to_host copies it into the stepper's arrays
-    state_on_host = False
 
     def __init__(self, stepper):
         from numba import cuda as _cuda
@@ -383,6 +378,10 @@ class CUDALoops:
         self.s = s
         d = m.dim
         self.k = kernels(d, len(s.components), int(s.limiter), s.flux_options[:3])
+        self.bias, self.switch = s.flux_options[3:]
+        # the state lives on the device: the host's v, F, x are a copy, brought up to date
+        # by to_host when the device's state has moved on
+        self.host_stale = False
         up = cuda.to_device
         # a view of v when only v is reconstructed: U has its own array on the device
         self.pack = s.stress_reconstructed
@@ -432,16 +431,21 @@ class CUDALoops:
             self.arrays["acceleration"] = up(loads.acceleration)
 
     def to_host(self):
-        """Copy the state (v, F, x) back into the stepper's host arrays."""
+        """Copy the state (v, F, x) back into the stepper's host arrays if it moved on."""
+        if not self.host_stale:
+            return
         s, A = self.s, self.arrays
         A["v"].copy_to_host(s.v)
         A["F"].copy_to_host(s.F)
         A["x"].copy_to_host(s.x)
+        self.host_stale = False
 
     def from_host(self):
+        """The host's v, F, x are the state: copy them to the device."""
         s, A = self.s, self.arrays
         for name in ("v", "F", "x"):
             A[name].copy_to_device(getattr(s, name))
+        self.host_stale = False
 
     def loads_changed(self):
         """The loads were brought to a new time: copy their values up if they vary."""
@@ -493,7 +497,8 @@ class CUDALoops:
             A["node_neighbour"], A["dF"])
 
     def contact_stage(self, stage, stage_time):
-        self.contact.stage(stage, stage_time)
+        """The contact stage on the host (HostContact); its result is on the device too."""
+        return self.contact.stage(stage, stage_time)
 
     def contact_apply(self):
         self.contact.apply()
@@ -501,9 +506,10 @@ class CUDALoops:
     def contact_end_step(self, time):
         self.contact.end_step(time)
 
-    def fluxes(self):
-        """force and dF of the edges and boundary faces; returns (boundary power, the force
-        of each boundary condition's faces)."""
+    def fluxes(self, contact):
+        """force and dF of the edges and boundary faces (the device's copy of ``contact``,
+        the stage's contact.driver.ContactStage); returns (boundary power, the force of each
+        boundary condition's faces)."""
         s, m, A, k = self.s, self.s.disc, self.arrays, self.k
         own, denominator = m.closure
         k.zero_rates[_blocks(m.n_nodes), THREADS](A["force"], A["dF"])
@@ -512,8 +518,8 @@ class CUDALoops:
         if m.n_edges:
             k.interior_fluxes[_blocks(m.n_edges), THREADS](
                 A["v"], A["F"], A["sigma"], A["grad"], A["node_material"],
-                A["material_table"], A["edges"], A["C"], A["C_len"], A["half"], s.bias,
-                s.switch, A["contact_state"], A["force"], A["dF"])
+                A["material_table"], A["edges"], A["C"], A["C_len"], A["half"],
+                self.bias, self.switch, A["contact_state"], A["force"], A["dF"])
         h = len(m.bface_node)
         if h:
             k.boundary_fluxes[_blocks(h), THREADS](
@@ -538,9 +544,10 @@ class CUDALoops:
                                                                self.held, self.held_force, 0)
         return self.held_sum @ self.held_force.copy_to_host()
 
-    def update(self, alpha, dt, stage, last, with_monitors):
+    def update(self, alpha, dt, stage, last, with_monitors, contact):
         """One Runge-Kutta stage of every node (the first saves the start of the step), with
-        the energy rate of the stage's state read first; at the last stage also the time
+        the energy rate of the stage's state read first, nodes in contact (the device's copy
+        of ``contact``) moving with their contact velocity; at the last stage also the time
         step, the state check and, when asked, the monitors (backends.loops.StageResult)."""
         from .loops import StageResult
 
@@ -572,13 +579,14 @@ class CUDALoops:
                 A["node_material"], A["material_table"], A["volume"],
                 A["fixed_mask"], A["fixed_value"], start, stop, A["node_length"], bool(last),
                 bool(with_monitors), self.smallest, self.first_bad, self.monitors, body)
+        self.host_stale = True
         if not last:
             return StageResult(rate, held_power)
         if with_monitors:
             self.monitors.copy_to_host(s.monitor_buf)
         bad = int(self.first_bad.copy_to_host()[0])
         return StageResult(rate, held_power, integration, float(self.smallest.copy_to_host()[0]),
-                           bad if bad < n else -1)
+                           bad if bad < n else -1, s.monitor_buf if with_monitors else None)
 
 
 class HostContact:
@@ -589,7 +597,8 @@ class HostContact:
     face in contact, the gradients it drops, and after the flux assembly the contact forces
     and F-equation terms (added on the host to the device's sums of the surface rows) and
     each node's contact state and velocity. The transfers grow with the contact surfaces,
-    not with the mesh; the search and the contact Riemann states are the CPU's code."""
+    not with the mesh; the search and the contact Riemann states are the CPU's code. The
+    ContactStage a stage returns holds the host's arrays; the loops read the device's."""
 
     def __init__(self, device):
         cuda, A, s = device.cuda, device.arrays, device.s
@@ -608,13 +617,13 @@ class HostContact:
             return name, A[name].reshape(rows, w), flat
         self.state_in = [view("x", s.x), view("v", s.v), view("F", s.F),
                          view("sigma", s.sigma)]
-        self.grad = view("grad", s.grad) if s.order == 2 else None
+        self.grad = view("grad", s.grad)[1] if s.order == 2 else None
         self.rates_io = [view("force", s.force), view("dF", s.dF)]
-        self.weights = view("face_contact_weight", s.face_contact_weight,
-                            len(s.disc.bface_node))
+        system = s.contact
+        self.weights = view("face_contact_weight", system.face_weight, len(s.disc.bface_node))
         self.contact_out = [("contact_state", A["contact_state"].reshape(n, 1),
-                             s.contact_state.reshape(n, 1)),
-                            ("contact_xdot", A["contact_xdot"], s.contact_xdot)]
+                             system.state.reshape(n, 1)),
+                            ("contact_xdot", A["contact_xdot"], system.xdot)]
         self.buffers = {}
 
     def _buffer(self, rows, width):
@@ -656,15 +665,17 @@ class HostContact:
 
     def stage(self, stage, stage_time):
         s = self.s
-        views = self.state_in + ([self.grad] if self.grad else [])
-        self._down(views, self.nodes, self.nodes_dev)
-        self.system.stage(s.x, s.v, s.F, s.sigma, s.grad, s.order == 2, s.dt, stage,
-                          stage_time)
+        self._down(self.state_in, self.nodes, self.nodes_dev)
+        contact = self.system.stage(s.x, s.v, s.F, s.sigma, s.dt, stage, stage_time)
         self._up([self.weights], self.faces, self.faces_dev)
         # the stage's contact states (the smoothness switch leaves the contact zone's edges)
         self._up(self.contact_out[:1], self.nodes, self.nodes_dev)
-        if self.grad:
-            self._up([self.grad], self.nodes, self.nodes_dev)
+        if self.grad is not None and len(contact.first_order):
+            # the gradients the stage drops, zeroed on the device
+            rows = self.device.cuda.to_device(contact.first_order.astype(np.int64))
+            zeros = self.device.cuda.to_device(np.zeros((len(rows), self.grad.shape[1])))
+            self.device.k.unpack_rows[_blocks(len(rows)), THREADS](zeros, 0, rows, self.grad)
+        return contact
 
     def apply(self):
         s = self.s

@@ -27,23 +27,45 @@ class StageResult:
     """What a Runge-Kutta stage's update returns: the rate of the nodes' kinetic and strain
     energy in the stage's state, the power of the forces the supports cancel on held
     velocity components, and at the last stage the energy the step adds (Heun's excess), the
-    smallest h lambda_min / c_p of the new state and its first bad node (-1: none)."""
+    smallest h lambda_min / c_p of the new state, its first bad node (-1: none), its
+    monitors when asked (per body: kinetic and strain energy, momentum) and whether the
+    stress (and U) of the owned nodes are the new state's."""
 
     rate: float
     held_power: float
     integration: float = 0.0
     smallest: float = np.inf
     bad: int = -1
+    monitors: np.ndarray | None = None
+    stress: bool = False
+
+
+@dataclass(frozen=True)
+class StateValues:
+    """What the last stage of the step that made the current state computed of it, in one
+    pass with the update (StageResult): the next stable time step, the first
+    bad node (-1: none), the monitors (per body: kinetic and strain energy, momentum) and
+    whether sigma (and U) of the owned nodes are this state's. None / False: not computed;
+    stable_dt, check and history_row then compute them from the state."""
+
+    next_dt: float | None = None
+    bad: int | None = None
+    monitors: np.ndarray | None = None
+    stress: bool = False
+
+
+#: nothing known of the state besides the state (the first step, after a restore, after code
+#: outside the stepper wrote v, F or x: scheme.stepper.FVStepper.state_changed)
+UNKNOWN = StateValues()
 
 
 class CPULoops:
     """The stage's loops on the CPU (backends/cpu.py), on the stepper's host arrays. The
     node loops of the update run over the owned nodes (all of them in a serial run)."""
 
-    #: the last stage leaves the new state's stress (rk_update_last)
+    #: the last stage leaves the new state's stress (rk_update_last), which the next step's
+    #: first stage and a restart may use
     carries_stress = True
-    #: the stepper's arrays v, F, x are the state
-    state_on_host = True
 
     def __init__(self, stepper):
         self.s = stepper
@@ -82,19 +104,25 @@ class CPULoops:
                            s.dim, s.x, s.F, s.mismatch, True, s.dim)
 
     def contact_stage(self, stage: int, stage_time: float):
+        """The contact stage of the current state (contact.driver.ContactStage); the nodes it
+        takes to first order lose their gradients."""
         s = self.s
-        s.contact.stage(s.x, s.v, s.F, s.sigma, s.grad, s.order == 2, s.dt, stage, stage_time)
+        contact = s.contact.stage(s.x, s.v, s.F, s.sigma, s.dt, stage, stage_time)
+        if s.order == 2:
+            s.grad[contact.first_order] = 0.0
+        return contact
 
-    def fluxes(self):
-        """force and dF of the edges and boundary faces; returns (boundary power, the force
-        of each boundary condition's faces)."""
+    def fluxes(self, contact):
+        """force and dF of the edges and boundary faces (free of ``contact``, the stage's
+        ContactStage, for the part of each face in contact); returns (boundary power, the
+        force of each boundary condition's faces)."""
         s, m, loads = self.s, self.s.disc, self.s.loads
         K.assemble_rates(s.v, s.F, s.sigma, s.grad, m.node_material, m.material_table,
                          s.edge_mesh, s.face_mesh,
                          (m.bc_fixed, loads.face_velocity, loads.face_traction,
                           s.tangential_correction),
-                         s.flux_options, s.contact_state, s.face_contact_weight, s.force, s.dF,
-                         s.power, s.bc_force, s.dim)
+                         s.flux_options, contact.state, contact.face_weight,
+                         (s.force, s.dF, s.power, s.bc_force), s.dim)
         return s.power[0], s.bc_force
 
     def contact_apply(self):
@@ -117,10 +145,11 @@ class CPULoops:
         s = self.s
         return s.energy.reaction_sum @ s.force[:s.n_owned]
 
-    def update(self, alpha, dt, stage, last, with_monitors) -> StageResult:
+    def update(self, alpha, dt, stage, last, with_monitors, contact) -> StageResult:
         """One Runge-Kutta stage of the owned nodes (the first stage saves the start of the
-        step); the last stage also gives the time step, the state check, the stress of the
-        new state and, with ``with_monitors``, the monitors into stepper.monitor_buf."""
+        step), nodes in ``contact`` (the stage's ContactStage) moving with their contact
+        velocity; the last stage also gives the time step, the state check, the stress of
+        the new state and, with ``with_monitors``, the monitors (in stepper.monitor_buf)."""
         s, m, o = self.s, self.s.disc, self.s.n_owned
         held = s.energy.held
         held_power = float(np.dot(s.force[held], s.v[held])) if s.energy.has_supports else 0.0
@@ -128,7 +157,7 @@ class CPULoops:
         state = (s.v[:o], s.F[:o], s.x[:o])
         rates = (s.force[:o], s.dF[:o], s.sigma[:o])
         node_data = (m.volume[:o], m.fixed_mask[:o], s.loads.fixed_value[:o])
-        nodal = (start, state, rates, s.contact_state[:o], s.contact_xdot[:o],
+        nodal = (start, state, rates, contact.state[:o], contact.xdot[:o],
                  m.node_material[:o], m.material_table, node_data)
         if not last:
             return StageResult(K.rk_update(alpha, dt, *nodal, stage == 0, s.dim), held_power)
@@ -140,7 +169,8 @@ class CPULoops:
             smallest = K.smallest_time_step_of_candidates(
                 s.F[:o], m.node_material[:o], m.material_table, m.node_length[:o],
                 s.stretch_bound[:o], smallest, s.dim)
-        return StageResult(rate, held_power, integration, smallest, bad)
+        return StageResult(rate, held_power, integration, smallest, bad,
+                           s.monitor_buf if with_monitors else None, True)
 
     def contact_end_step(self, time: float):
         s = self.s

@@ -11,6 +11,7 @@ face and of the step they are in contact (docs/contact.md).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -19,14 +20,35 @@ from ..geometry.bins import build_bins
 from ..geometry.surfaces import surface_facets
 from ..mesh.edges import facet_index
 from . import riemann_step as RS
-from .overlap import boundary_straightness, closing_fractions, contact_pieces
-from .search import (BESIDE_IS_OPEN, BESIDE_MEASURED, BESIDE_OFFSET, find_partners,
-                     forget_partners, near_each_other, surface_normals, wall_gaps)
+from .overlap import (ContactFaces, Discretisation, Pieces, boundary_straightness,
+                      closing_fractions, contact_pieces)
+from .search import (BESIDE_IS_OPEN, BESIDE_MEASURED, BESIDE_OFFSET, Bins, Partners, Skip,
+                     find_partners, forget_partners, near_each_other, surface_normals,
+                     wall_gaps)
 
 #: self-contact: a facet whose plane a node lies behind, deeper than this fraction of the
 #: facet's length, is the body's own other side across a wall, not a partner (with the
 #: reference configuration's test of search.closest_facet, which this enables)
 SELF_CONTACT_DEEPEST = 0.5
+
+
+class ContactStage(NamedTuple):
+    """What one contact stage decides for the bodies' equations (ContactSystem.stage): per
+    node its contact mode (OPEN 0, STICK 1, SLIP 2; the smoothness switch leaves the edges
+    of nodes in contact) and the velocity that moves it (complete after ContactSystem.apply),
+    per dual boundary face the part of face and step in contact (the free boundary flux
+    keeps the rest), and the nodes whose reconstruction gradients the stage drops."""
+
+    state: np.ndarray
+    xdot: np.ndarray
+    face_weight: np.ndarray
+    first_order: np.ndarray
+
+    @classmethod
+    def none(cls, n_nodes, n_faces, dim):
+        """No contact: every node open, every face free."""
+        return cls(np.zeros(n_nodes, np.int8), np.zeros((n_nodes, dim)), np.zeros(n_faces),
+                   np.zeros(0, np.int64))
 
 
 @dataclass
@@ -99,10 +121,10 @@ class ContactSystem:
         self.faces = np.unique(np.concatenate([s.faces for s in surfaces]))
         # a self-contact surface does not touch itself next to a node: the nodes that share a
         # facet with it (CSR over all nodes; empty for the contacts between two bodies)
-        self.no_skip = (np.zeros(n + 1, np.int64), np.zeros(0, np.int64))
+        self.no_skip = Skip(np.zeros(n + 1, np.int64), np.zeros(0, np.int64))
         for pair in self.pairs:
             if pair.self_contact:
-                pair.skip = self._neighbours(pair.surfaces[0].facets, n)
+                pair.skip = Skip(*self._neighbours(pair.surfaces[0].facets, n))
         h = len(disc.bface_node)
         self.face_weight = np.zeros(h)         # fraction of each face and step in contact
         self.face_velocity = np.zeros((h, d))  # contact velocity per face, times face_weight
@@ -142,6 +164,21 @@ class ContactSystem:
         self.slave_near = np.zeros(n, np.int64)
         self.facets_near = np.zeros(max(len(s.facets) for s in surfaces), np.int64)
         self.wall_face_buffer = np.zeros(max(int(np.diff(self.face_start).max()), 1), np.int64)
+        self._bundles()
+
+    def _bundles(self):
+        """The arrays the compiled passes take, bundled once (the same array objects: what
+        the passes write lands in the attributes above); the pieces' bundle is made with
+        their arrays (_pieces)."""
+        disc = self.disc
+        self.disc_arrays = Discretisation(disc.X, disc.bface_C, disc.bface_others,
+                                          disc.node_material, disc.material_table)
+        self.contact_faces = ContactFaces(self.face_start, self.face_list, self.face_weight,
+                                          self.face_velocity)
+        self.found = Partners(self.partner, self.partner_w, self.partner_dist, self.gap,
+                              self.normal)
+        self.sums = RS.NodeSums(self.force_acc, self.length_sum, self.motion_sum,
+                                self.traction_sum)
 
     #: how far along its surface a self-contact node is blind to its own facets: three rings
     #: of facets reach beyond the search radius (two facet lengths) along a flat or convex
@@ -176,6 +213,9 @@ class ContactSystem:
         self.piece_length = np.zeros(capacity)
         self.piece_face_length = np.zeros(capacity)
         self.piece_normal = np.zeros((capacity, d))
+        self.pieces = Pieces(self.piece_node, self.piece_face, self.piece_partner,
+                             self.piece_segment, self.piece_length, self.piece_face_length,
+                             self.piece_normal)
 
     @staticmethod
     def _surface(case, disc, name, regions, k):
@@ -194,18 +234,18 @@ class ContactSystem:
         return Surface(np.unique(facets), facets, faces, facet_faces)
 
     # ------------------------------------------------------------------ per stage
-    def stage(self, x, v, F, sigma, grad, reconstructed, dt, stage_index, time=0.0):
+    def stage(self, x, v, F, sigma, dt, stage_index, time=0.0) -> ContactStage:
         """Contact states and forces for the current stage, from the state's velocities and
-        stresses (before the flux assembly); the gradients of the nodes in contact inside a
-        contact face are dropped when the scheme reconstructs. Which nodes touch
-        during the step, and when, is decided in the first stage and kept in the second.
-        ``time`` is the stage's time (where moving walls are)."""
+        stresses (before the flux assembly). Which nodes touch during the step, and when, is
+        decided in the first stage and kept in the second. ``time`` is the stage's time
+        (where moving walls are). The arrays of the result are the system's own, rewritten
+        by the next stage."""
         self.time = time
         RS.reset_surface(self.surface_nodes, self.faces, self.state, self.force_acc,
                          self.tstar_n, self.face_weight, self.face_velocity, self.length_sum,
                          self.motion_sum, self.traction_sum)
         if not self._finite(x):
-            return
+            return self._result()
         self._geometry(x)
         self.follower[self.surface_nodes] = False
         for pair in self.pairs:
@@ -222,8 +262,16 @@ class ContactSystem:
                                    self.follow_w, self.follow_normal, self.follow_phi,
                                    self.state, v, self.xdot, self.face_start, self.face_list,
                                    self.face_weight, self.face_velocity)
-        if reconstructed:
-            RS.first_order_in_contact(self.surface_nodes, self.state, self.flat, grad)
+        return self._result()
+
+    def _result(self) -> ContactStage:
+        # nodes in contact inside a contact face (every boundary face of theirs on a contact
+        # surface) are not reconstructed: their one-sided boundary gradient ignores the
+        # partner and makes their velocity ring after the first touch; corner nodes keep
+        # theirs (the free side's: zeroing it made the corners drift, docs/contact.md)
+        nodes = self.surface_nodes
+        first_order = nodes[(self.state[nodes] != RS.OPEN) & self.flat[nodes]]
+        return ContactStage(self.state, self.xdot, self.face_weight, first_order)
 
     def _finite(self, x):
         """A blown-up state (reported by the stepper's check after the step) has no contact
@@ -238,25 +286,12 @@ class ContactSystem:
     def _passes(self, pair, x, v, F, sigma, dt, stage_index, fsum):
         """Search, and from a stage on (stage_index >= 0) the overlap and Riemann steps, of
         one contact; returns the smallest gap."""
-        disc = self.disc
         apply = stage_index >= 0
+        # (sigma is None after the step, when only the gaps are measured)
+        state = RS.State(x, v, F, sigma)
+        contact = RS.Contact(pair.phi, pair.state, fsum, pair.friction)
         if pair.wall_normal is not None:
-            slave = pair.surfaces[0].nodes
-            # a moving wall translates rigidly with its velocity
-            point = pair.wall_point + pair.wall_velocity * self.time
-            gmin = wall_gaps(x, slave, point, pair.wall_normal, self.gap, self.normal)
-            if apply:
-                if stage_index == 0:
-                    RS.wall_fractions(v, slave, self.gap, self.normal, pair.wall_velocity,
-                                      pair.memory, dt, pair.phi)
-                RS.wall_pass(disc.X, x, F, v, sigma, disc.node_material,
-                             disc.material_table, slave, self.face_start, self.face_list,
-                             disc.bface_C, disc.bface_others, self.normal,
-                             pair.wall_velocity, pair.friction, pair.phi, self.wall_face_buffer,
-                             self.force_acc, fsum, self.face_weight, self.face_velocity,
-                             pair.state, self.length_sum, self.motion_sum,
-                             self.traction_sum, self.dim)
-            return gmin
+            return self._wall_pass(pair, state, contact, dt, stage_index)
         gmin = np.inf
         # two bodies: each one's nodes against the other's facets, half the force each;
         # self-contact: the surface against itself once, which finds both sides of every
@@ -272,39 +307,48 @@ class ContactSystem:
             forget_partners(slave_nodes, self.partner)
             if n_near == 0 or n_facets == 0:
                 if apply and stage_index == 0:   # no partner: phi from the memory alone
-                    closing_fractions(x, v, slave_nodes, self.partner, self.partner_w,
-                                      self.gap, self.normal, surface.facets, pair.memory, dt,
-                                      pair.phi)
+                    closing_fractions(x, v, slave_nodes, self.found, surface.facets,
+                                      pair.memory, dt, pair.phi)
                 continue
             near = self.slave_near[:n_near]
             chosen = self.facets_near[:n_facets]
             segs = surface.facets[chosen]
             segment_faces = surface.facet_faces[chosen]
-            bins = build_bins(x, segs, self.pad)
-            g = find_partners(x, disc.X, near, self.normal_out, segs, *bins, self.pad,
-                              self.partner, self.partner_w, self.partner_dist, self.gap,
-                              self.normal, *skip, self._beside(pair, apply),
+            bins = Bins(*build_bins(x, segs, self.pad))
+            g = find_partners(x, self.disc.X, near, self.normal_out, segs, bins, self.pad,
+                              self.found, skip, self._beside(pair, apply),
                               SELF_CONTACT_DEEPEST if pair.self_contact else 0.0)
             gmin = min(gmin, g)
             if not apply:
                 continue
             if stage_index == 0:
-                closing_fractions(x, v, slave_nodes, self.partner, self.partner_w, self.gap,
-                                  self.normal, segs, pair.memory, dt, pair.phi)
+                closing_fractions(x, v, slave_nodes, self.found, segs, pair.memory, dt,
+                                  pair.phi)
             if not pair.self_contact:
-                RS.mark_followers(near, self.partner, self.partner_w, self.normal, pair.phi,
-                                  segs, self.straightness, self.follower, self.follow_nodes,
-                                  self.follow_w, self.follow_normal, self.follow_phi)
+                RS.mark_followers(near, self.found, pair.phi, segs, self.straightness,
+                                  self.follower, self.follow_nodes, self.follow_w,
+                                  self.follow_normal, self.follow_phi)
             count = self._contact_pieces(x, near, segs, bins, skip, pair.phi,
                                          SELF_CONTACT_DEEPEST if pair.self_contact else 0.0)
-            RS.piece_states(disc.X, x, F, v, sigma, disc.node_material,
-                            disc.material_table, disc.bface_C, disc.bface_others, segs,
-                            segment_faces, pair.phi, count, self.piece_node, self.piece_face,
-                            self.piece_partner, self.piece_segment, self.piece_length,
-                            self.piece_face_length, self.piece_normal, 0.5,
-                            1.0 if first == 0 else -1.0, pair.friction, self.force_acc, fsum,
-                            self.face_weight, self.face_velocity, pair.state,
-                            self.length_sum, self.motion_sum, self.traction_sum, self.dim)
+            RS.piece_states(self.disc_arrays, state, segs, segment_faces, self.pieces, count,
+                            contact, 0.5, 1.0 if first == 0 else -1.0, self.contact_faces,
+                            self.sums, self.dim)
+        return gmin
+
+    def _wall_pass(self, pair, state, contact, dt, stage_index):
+        """The gaps to a wall, and from a stage on the wall's contact; returns the smallest
+        gap."""
+        slave = pair.surfaces[0].nodes
+        # a moving wall translates rigidly with its velocity
+        point = pair.wall_point + pair.wall_velocity * self.time
+        gmin = wall_gaps(state.x, slave, point, pair.wall_normal, self.gap, self.normal)
+        if stage_index >= 0:
+            if stage_index == 0:
+                RS.wall_fractions(state.v, slave, self.gap, self.normal, pair.wall_velocity,
+                                  pair.memory, dt, pair.phi)
+            RS.wall_pass(self.disc_arrays, state, slave, self.normal, pair.wall_velocity,
+                         contact, self.wall_face_buffer, self.contact_faces, self.sums,
+                         self.dim)
         return gmin
 
     def _beside(self, pair, stage):
@@ -314,21 +358,21 @@ class ContactSystem:
         return BESIDE_OFFSET if stage else BESIDE_MEASURED
 
     def _contact_pieces(self, x, slave_nodes, segs, bins, skip, phi, deepest):
-        disc = self.disc
+        """The pieces of the slave nodes against the facets segs (with their Bins; ``skip``:
+        a self-contact's Skip, or no_skip) into self.pieces, grown until they fit; returns
+        their number (overlap.contact_pieces)."""
         while True:
-            count = contact_pieces(x, disc.X, slave_nodes, self.partner, self.partner_dist,
-                                   self.normal, phi, self.face_start, self.face_list,
-                                   disc.bface_others, disc.bface_C, self.straightness,
-                                   segs, *bins,
-                                   self.piece_node,
-                                   self.piece_face, self.piece_partner, self.piece_segment,
-                                   self.piece_length, self.piece_face_length,
-                                   self.piece_normal, *skip, self.pad, deepest)
+            count = contact_pieces(x, self.disc_arrays, slave_nodes, self.found, phi,
+                                   self.contact_faces, self.straightness, segs, bins,
+                                   self.pieces, skip, self.pad, deepest)
             if count <= len(self.piece_node):
                 return count
             self._pieces(2 * count)
 
     def apply(self, force, dF, fixed_value):
+        """Add the stage's contact forces to force and its contact faces' terms to dF, and
+        give the velocity components prescribed by a boundary condition to the contact
+        velocity of the nodes in contact (riemann_step.apply_contact)."""
         disc = self.disc
         RS.apply_contact(self.surface_nodes, self.faces, disc.bface_node, disc.bface_C,
                          self.face_weight, self.face_velocity, self.state, self.xdot,

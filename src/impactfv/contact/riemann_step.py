@@ -17,6 +17,7 @@ alike by two passes, each with weight 1/2.
 """
 
 import math
+from collections import namedtuple
 
 from numba import njit
 
@@ -41,6 +42,17 @@ RHO, CP, CS = M.RHO, M.CP, M.CS
 OPEN, STICK, SLIP = 0, 1, 2
 OWN2, DENOMINATOR2 = CLOSURE[2]
 OWN3, DENOMINATOR3 = CLOSURE[3]
+
+#: the state of the stage the contact reads: positions, velocities, F and Cauchy stress
+State = namedtuple("State", "x v F sigma")
+#: one contact in this stage: per node the fraction of the step in contact (read) and the
+#: contact mode OPEN, STICK or SLIP (written); the force on the first body (added to); the
+#: Coulomb coefficient
+Contact = namedtuple("Contact", "phi mode fsum friction")
+#: per node, what the contact adds in this stage: the force, and the sums of contact length,
+#: of length-weighted (contact velocity - velocity) and of length-weighted normal traction
+#: that settle_nodes turns into its motion and output
+NodeSums = namedtuple("NodeSums", "force length motion traction")
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -90,21 +102,49 @@ def facet_position(facets, s, b):
     return -1
 
 
+@njit(cache=True, inline="always", error_model="numpy")
+def side_state(disc, state, a, face, n, vf, sf, tf, Fa, N, scratch, d):
+    """One side of a contact on node a's face ``face``: the face's velocity and stress
+    (face_state, into vf and sf) and its traction on the surface of normal n (into tf);
+    returns the face's area ratio da/dA (its spatial normal left in scratch) and the side's
+    normal and shear impedances per unit spatial area, rho c / (da/dA)."""
+    face_state(a, disc.bface_others[face], state.v, state.sigma, vf, sf, d)
+    face_traction(sf, n, 1.0, tf)
+    props = disc.material_table[disc.node_material[a]]
+    r = area_ratio(state.F, a, disc.bface_C[face], props, Fa, N, scratch)
+    return r, props[RHO] * props[CP] / r, props[RHO] * props[CS] / r
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def piece_force(a, b, C, part, ra, weight, phi, ts, force, fsum, sign, d):
+    """The force of a piece on node a, and minus it on node b: weight phi t* over the
+    piece's part ``part`` (l / l_face) of a's face, that part's area measured with F (da/dA
+    ``ra`` times the reference area |C|, seed eq. 9a) as every momentum flux is, not with
+    the positions. Its total on the first body, times ``sign``, is added to fsum."""
+    lc = 0.0
+    for i in range(d):
+        lc += C[i] * C[i]
+    area = part * ra * math.sqrt(lc)
+    for i in range(d):
+        f = weight * phi * area * ts[i]
+        force[a, i] += f
+        force[b, i] -= f
+        fsum[i] += sign * f
+
+
 @njit(cache=True, error_model="numpy")
-def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others, segs, segment_faces, phi, count,
-                 piece_node, piece_face, piece_partner, piece_segment, piece_length,
-                 piece_face_length, piece_normal, weight, sign, mu, force_acc, fsum,
-                 face_weight, face_velocity, state, length_sum, motion_sum, traction_sum,
-                 dim):
+def piece_states(disc, state, segs, segment_faces, pieces, count, contact, weight, sign,
+                 faces, sums, dim):
     """Contact states of the pieces (the parts of the contact faces, the nodes' dual
-    boundary faces, that meet the partner), in order. A piece of pass weight w (1/2 between two
-    bodies: each body's nodes are checked against the other's surface) gives both sides w of
-    the contact: the tractions +-w phi t* l (their total on the first body, times ``sign``,
-    into fsum); on each side's face the part w phi l / l_face of face and step in contact,
-    with that side's contact velocity (face_weight, and face_velocity weighted by it); and
-    per node the sums of w l, w phi l (v_kin - v) and w l t*_n for its motion and output.
-    Both sides of every piece get the same treatment, so that the work of the contact
-    traction on the two bodies balances whichever body's pass found it."""
+    boundary faces, that meet the partner; the first ``count`` of ``pieces``, on the master
+    facets segs with their dual faces segment_faces), in order. A piece of pass weight w (1/2
+    between two bodies: each body's nodes are checked against the other's surface) gives
+    both sides w of the contact: the tractions +-w phi t* l (their total on the first body,
+    times ``sign``, into contact.fsum); on each side's face the part w phi l / l_face of face
+    and step in contact, with that side's contact velocity (faces.weight, and faces.velocity
+    weighted by it); and per node the sums of w l, w phi l (v_kin - v) and w l t*_n for its
+    motion and output (sums). Both sides of every piece get the same treatment, so that the
+    work of the contact traction on the two bodies balances whichever body's pass found it."""
     d = len(dim)
     SA = local_matrix(d)
     SB = local_matrix(d)
@@ -125,68 +165,49 @@ def piece_states(X, x, F, v, sigma, node_material, table, bface_C, bface_others,
     mts = local_vector(d)
     N = local_vector(d)
     scratch = local_vector(d)
+    v = state.v
     for p in range(count):
-        a = piece_node[p]
-        b = piece_partner[p]
-        face = piece_face[p]
-        sm = piece_segment[p]
+        a = pieces.node[p]
+        b = pieces.partner[p]
+        face = pieces.face[p]
+        sm = pieces.segment[p]
         face_b = segment_faces[sm, facet_position(segs, sm, b)]
-        load_vector(piece_normal, p, c)
-        face_state(a, bface_others[face], v, sigma, vA, SA, d)
-        face_state(b, bface_others[face_b], v, sigma, vB, SB, d)
-        face_traction(SA, c, 1.0, tA)
-        face_traction(SB, c, 1.0, tB)
-        pa = table[node_material[a]]
-        pb = table[node_material[b]]
-        # area ratios of the two faces (from their reference area vectors)
-        ra = area_ratio(F, a, bface_C[face], pa, Fa, N, scratch)
-        rb = area_ratio(F, b, bface_C[face_b], pb, Fa, N, scratch)
-        zpA = pa[RHO] * pa[CP] / ra
-        zsA = pa[RHO] * pa[CS] / ra
-        zpB = pb[RHO] * pb[CP] / rb
-        zsB = pb[RHO] * pb[CS] / rb
-        tn, slides = contact_state(vA, tA, vB, tB, c, zpA, zsA, zpB, zsB, mu, vtA, ttA, vtB,
-                                   ttB, vsA, vsB, ts)
+        load_vector(pieces.normal, p, c)
+        ra, zpA, zsA = side_state(disc, state, a, face, c, vA, SA, tA, Fa, N, scratch, d)
+        rb, zpB, zsB = side_state(disc, state, b, face_b, c, vB, SB, tB, Fa, N, scratch, d)
+        tn, slides = contact_state(vA, tA, vB, tB, c, zpA, zsA, zpB, zsB, contact.friction,
+                                   vtA, ttA, vtB, ttB, vsA, vsB, ts)
         if releases(tn):
             continue
         for i in range(d):
             # B's view: tractions on surfaces of normal -c, out of B
             mtB[i] = -tB[i]
             mts[i] = -ts[i]
-        ell = piece_length[p]
-        share = weight * phi[a] * ell
-        # the force: t* over the piece's part of the slave face, that part's area measured
-        # with F (da/dA times the reference area, seed eq. 9a) as every momentum flux is,
-        # not with the positions
-        lc = 0.0
-        for i in range(d):
-            lc += bface_C[face, i] * bface_C[face, i]
-        area = ell / piece_face_length[p] * ra * math.sqrt(lc)
-        for i in range(d):
-            f = weight * phi[a] * area * ts[i]
-            force_acc[a, i] += f
-            force_acc[b, i] -= f
-            fsum[i] += sign * f
+        ell = pieces.length[p]
+        share = weight * contact.phi[a] * ell
+        piece_force(a, b, disc.bface_C[face], ell / pieces.face_length[p], ra, weight,
+                    contact.phi[a], ts, sums.force, contact.fsum, sign, d)
         # the partner's face: its share of the facet
-        lb = dual_face_vector(x, X, b, bface_others[face_b], bface_C[face_b], scratch)
-        wa = share / piece_face_length[p]
+        lb = dual_face_vector(state.x, disc.X, b, disc.bface_others[face_b],
+                              disc.bface_C[face_b], scratch)
+        wa = share / pieces.face_length[p]
         wb = share / lb
-        face_weight[face] += wa
-        face_weight[face_b] += wb
+        faces.weight[face] += wa
+        faces.weight[face_b] += wb
         for i in range(d):
             kA = kinematic_velocity(vA, tA, ts, c, zpA, i)
             kB = kinematic_velocity(vB, mtB, mts, c, zpB, i)
-            face_velocity[face, i] += wa * kA
-            face_velocity[face_b, i] += wb * kB
-            motion_sum[a, i] += share * (kA - v[a, i])
-            motion_sum[b, i] += share * (kB - v[b, i])
+            faces.velocity[face, i] += wa * kA
+            faces.velocity[face_b, i] += wb * kB
+            sums.motion[a, i] += share * (kA - v[a, i])
+            sums.motion[b, i] += share * (kB - v[b, i])
         mode = SLIP if slides else STICK
-        state[a] = mode
-        state[b] = mode
-        length_sum[a] += weight * ell
-        length_sum[b] += weight * ell
-        traction_sum[a] += weight * tn * ell
-        traction_sum[b] += weight * tn * ell
+        contact.mode[a] = mode
+        contact.mode[b] = mode
+        sums.length[a] += weight * ell
+        sums.length[b] += weight * ell
+        sums.traction[a] += weight * tn * ell
+        sums.traction[b] += weight * tn * ell
 
 
 @njit(cache=True, error_model="numpy")
@@ -208,13 +229,12 @@ def wall_fractions(v, slave, gap, normal, wall_velocity, memory, dt, phi):
 
 
 @njit(cache=True, error_model="numpy")
-def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_list, bface_C, bface_others,
-              normal, wall_velocity, mu, phi, faces, force_acc, fsum, face_weight,
-              face_velocity, state, length_sum, motion_sum, traction_sum, dim):
+def wall_pass(disc, state, slave, normal, wall_velocity, contact, facing, faces, sums, dim):
     """Nodes of one body against a rigid wall: each of a node's contact faces (its dual
-    boundary faces) that faces the wall meets it with its own face state; the force acts on the face's projection on
-    the wall, the face carries the contact velocity in the F equation for the part phi of
-    the step, and the node moves with it (sums as in piece_states)."""
+    boundary faces) that faces the wall (overlap.wall_faces, listed in the buffer
+    ``facing``) meets it with its own face state; the force acts on the face's projection
+    on the wall, the face carries the contact velocity in the F equation for the part phi
+    of the step, and the node moves with it (sums as in piece_states)."""
     d = len(dim)
     S = local_matrix(d)
     Fa = local_matrix(d)
@@ -230,49 +250,47 @@ def wall_pass(X, x, F, v, sigma, node_material, table, slave, face_start, face_l
     vw = local_vector(d)
     for k in range(d):
         vw[k] = wall_velocity[k]
+    x, v = state.x, state.v
     for i in range(slave.shape[0]):
         a = slave[i]
-        if phi[a] == 0.0:
+        if contact.phi[a] == 0.0:
             continue
         load_vector(normal, a, n)
-        props = table[node_material[a]]
-        count, total = wall_faces(a, n, x, X, face_start, face_list, bface_others, bface_C,
-                                  faces, 0)
+        count, total = wall_faces(a, n, x, disc, faces, facing, 0)
+        phi = contact.phi[a]
         for j in range(count):
-            face = faces[j]
-            face_state(a, bface_others[face], v, sigma, vA, S, d)
-            face_traction(S, n, 1.0, tA)
-            r = area_ratio(F, a, bface_C[face], props, Fa, N, scratch)
-            tn, slides = wall_state(vA, tA, n, props[RHO] * props[CP] / r,
-                                    props[RHO] * props[CS] / r, vw, mu, vt, tt, vs, ts)
+            face = facing[j]
+            r, zp, zs = side_state(disc, state, a, face, n, vA, S, tA, Fa, N, scratch, d)
+            tn, slides = wall_state(vA, tA, n, zp, zs, vw, contact.friction, vt, tt, vs, ts)
             if releases(tn):
                 continue
             # the force acts on the face's projection on the wall measured with F (da/dA
             # times the reference area, projected with the face's normal from F, left in
             # scratch by area_ratio); the projection of the positions weighs the motion
             reference = 0.0
-            facing = 0.0
+            cosine = 0.0
             for k in range(d):
-                reference += bface_C[face, k] * bface_C[face, k]
-                facing += scratch[k] * n[k]
-            area = r * math.sqrt(reference) * abs(facing)
-            dual_face_vector(x, X, a, bface_others[face], bface_C[face], scratch)
+                reference += disc.bface_C[face, k] * disc.bface_C[face, k]
+                cosine += scratch[k] * n[k]
+            area = r * math.sqrt(reference) * abs(cosine)
+            dual_face_vector(x, disc.X, a, disc.bface_others[face], disc.bface_C[face],
+                             scratch)
             projected = 0.0
             for k in range(d):
                 projected += scratch[k] * n[k]
             projected = abs(projected)
-            share = phi[a] * projected
-            face_weight[face] += phi[a]
+            share = phi * projected
+            faces.weight[face] += phi
             for k in range(d):
-                f = phi[a] * area * ts[k]
-                force_acc[a, k] += f
-                fsum[k] += f
-                kv = kinematic_velocity(vA, tA, ts, n, props[RHO] * props[CP] / r, k)
-                face_velocity[face, k] += phi[a] * kv
-                motion_sum[a, k] += share * (kv - v[a, k])
-            state[a] = SLIP if slides else STICK
-            length_sum[a] += projected
-            traction_sum[a] += tn * projected
+                f = phi * area * ts[k]
+                sums.force[a, k] += f
+                contact.fsum[k] += f
+                kv = kinematic_velocity(vA, tA, ts, n, zp, k)
+                faces.velocity[face, k] += phi * kv
+                sums.motion[a, k] += share * (kv - v[a, k])
+            contact.mode[a] = SLIP if slides else STICK
+            sums.length[a] += projected
+            sums.traction[a] += tn * projected
 
 
 @njit(cache=True, error_model="numpy")
@@ -321,22 +339,6 @@ def settle_nodes(nodes, faces, v, length_sum, motion_sum, traction_sum, face_wei
 
 
 @njit(cache=True, error_model="numpy")
-def first_order_in_contact(nodes, state, flat, grad):
-    """Nodes in contact inside a contact face (``flat``: every boundary face of theirs is on a
-    contact surface) are not reconstructed in the interior fluxes: their one-sided boundary
-    gradient ignores the partner and makes their velocity ring after the first touch.
-    Corner nodes keep their gradient: there it is the free side's, and zeroing it made the
-    corners drift (docs/contact.md)."""
-    for i in range(nodes.shape[0]):
-        a = nodes[i]
-        if state[a] == OPEN or not flat[a]:
-            continue
-        for k in range(grad.shape[1]):
-            for J in range(grad.shape[2]):
-                grad[a, k, J] = 0.0
-
-
-@njit(cache=True, error_model="numpy")
 def apply_contact(nodes, faces, bface_node, bface_C, face_weight, face_velocity, state, xdot,
                   force_acc, fixed_mask, fixed_value, force, dF):
     """Add the contact forces to the momentum equation, and the contact velocities of the
@@ -368,17 +370,18 @@ def apply_contact(nodes, faces, bface_node, bface_C, face_weight, face_velocity,
 
 
 @njit(cache=True, error_model="numpy")
-def mark_followers(near, partner, partner_w, normal, phi, segs, straightness, follower,
-                   follow_nodes, follow_w, follow_normal, follow_phi):
+def mark_followers(near, found, phi, segs, straightness, follower, follow_nodes, follow_w,
+                   follow_normal, follow_phi):
     """Corners that follow the partner's surface: a slave node at a corner of its body
-    (``straightness`` 0: a right or sharper corner) whose partner facet is straight at both
-    ends (both nodes' straightness above 0). Records the facet's nodes, the weights of the
-    node's projection on it, the contact normal and the node's fraction of the step in
-    contact (docs/contact.md, "Corners follow the face they press into")."""
-    d = normal.shape[1]
+    (``straightness`` 0: a right or sharper corner) whose partner facet (``found``,
+    search.Partners) is straight at both ends (both nodes' straightness above 0). Records
+    the facet's nodes, the weights of the node's projection on it, the contact normal and
+    the node's fraction of the step in contact (docs/contact.md, "Corners follow the face
+    they press into")."""
+    d = found.normal.shape[1]
     for i in range(near.shape[0]):
         a = near[i]
-        s = partner[a]
+        s = found.facet[a]
         if s < 0 or straightness[a] > 0.0 or phi[a] == 0.0:
             continue
         flat = True
@@ -391,8 +394,8 @@ def mark_followers(near, partner, partner_w, normal, phi, segs, straightness, fo
         follow_phi[a] = phi[a]
         for m in range(d):
             follow_nodes[a, m] = segs[s, m]
-            follow_w[a, m] = partner_w[a, m]
-            follow_normal[a, m] = normal[a, m]
+            follow_w[a, m] = found.weights[a, m]
+            follow_normal[a, m] = found.normal[a, m]
 
 
 @njit(cache=True, error_model="numpy")

@@ -5,6 +5,7 @@ Facets are segments in 2D and triangles in 3D (geometry.facets); the same loops 
 """
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -12,6 +13,16 @@ from numba import njit
 from ..compiled import local_vector
 from ..geometry.bins import bin_of
 from ..geometry.facets import closest_point, facet_area_vector
+
+#: the bins of the master facets of a pass (geometry.bins.build_bins: Bins(*build_bins(...)))
+Bins = namedtuple("Bins", "origin h shape start items")
+#: per node, the nodes a self-contact node cannot touch: nodes[start[a]:start[a + 1]] (CSR
+#: over all nodes; empty between two bodies)
+Skip = namedtuple("Skip", "start nodes")
+#: the search results per node, for the slave nodes of the current pass: its partner facet
+#: (-1 if none), the barycentric weights of the closest point on it, the distance to it, the
+#: gap, and the contact normal from the node into the partner
+Partners = namedtuple("Partners", "facet weights distance gap normal")
 
 
 @njit(cache=True, error_model="numpy")
@@ -43,13 +54,12 @@ def surface_normals(x, nodes, facets, nrm):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def neighbouring(facets, s, a, skip_start, skip_nodes):
-    """Whether facet s has a node among node a's own neighbours on its surface (skip_nodes
-    [skip_start[a]:skip_start[a + 1]], self-contact only: a body does not touch itself
-    there)."""
-    for k in range(skip_start[a], skip_start[a + 1]):
+def neighbouring(facets, s, a, skip):
+    """Whether facet s has a node among node a's own neighbours on its surface (``skip``,
+    self-contact only: a body does not touch itself there)."""
+    for k in range(skip.start[a], skip.start[a + 1]):
         for j in range(facets.shape[1]):
-            if facets[s, j] == skip_nodes[k]:
+            if facets[s, j] == skip.nodes[k]:
                 return True
     return False
 
@@ -85,12 +95,12 @@ def across_own_wall(a, x, X, facet, pad, deepest, scratch):
 
 
 @njit(cache=True, error_model="numpy")
-def closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w, skip_start,
-                  skip_nodes, deepest):
-    """Closest partner facet facing node a within ``pad``: (facet, distance) with the
-    barycentric weights of the closest point in w, or (-1, inf). Facing: the facet's
-    outward normal and the node's point towards each other (a negative dot product, not
-    only by round-off: the faces of two blocks that meet at right angles are not facing).
+def closest_facet(a, x, X, nrm, facets, bins, pad, w, skip, deepest):
+    """Closest partner facet facing node a within ``pad`` (among those of its bin in
+    ``bins``, and not its own neighbours ``skip``): (facet, distance) with the barycentric
+    weights of the closest point in w, or (-1, inf). Facing: the facet's outward normal
+    and the node's point towards each other (a negative dot product, not only by
+    round-off: the faces of two blocks that meet at right angles are not facing).
 
     ``deepest`` > 0 (self-contact): the body's own other side across a thin wall (the outer
     face of a ring behind its inner face) faces the node as a partner would; taken for one,
@@ -103,14 +113,14 @@ def closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w, 
     d = x.shape[1]
     best = -1
     best_d = np.inf
-    c = bin_of(x[a], origin, h, shape)
+    c = bin_of(x[a], bins.origin, bins.h, bins.shape)
     if c < 0:
         return best, best_d
     S = local_vector(d)
     trial = local_vector(d)
-    for k in range(start[c], start[c + 1]):
-        s = items[k]
-        if neighbouring(facets, s, a, skip_start, skip_nodes):
+    for k in range(bins.start[c], bins.start[c + 1]):
+        s = bins.items[k]
+        if neighbouring(facets, s, a, skip):
             continue
         area = facet_area_vector(x, facets[s], S)
         facing = 0.0
@@ -134,12 +144,10 @@ BESIDE_OFFSET, BESIDE_IS_OPEN, BESIDE_MEASURED = 0, 1, 2
 
 
 @njit(cache=True, error_model="numpy")
-def find_partners(x, X, slave, nrm, facets, origin, h, shape, start, items, pad, partner,
-                  partner_w, partner_dist, gap, normal, skip_start, skip_nodes,
-                  beside, deepest):
-    """For every slave node: its partner facet (-1 if none within reach), the barycentric
-    weights partner_w of the closest point on it, the distance, the gap and the contact
-    normal n from the node into the partner (minus the facet's outward unit normal).
+def find_partners(x, X, slave, nrm, facets, bins, pad, found, skip, beside, deepest):
+    """For every slave node, into ``found`` (Partners): its partner facet (-1 if none within
+    reach), the barycentric weights of the closest point on it, the distance, the gap and the
+    contact normal n from the node into the partner (minus the facet's outward unit normal).
     Returns the smallest gap.
 
     The gap is g = (x_closest - x_a) . n where the closest point is the node's projection on
@@ -164,9 +172,8 @@ def find_partners(x, X, slave, nrm, facets, origin, h, shape, start, items, pad,
     w = local_vector(d)
     for i in range(slave.shape[0]):
         a = slave[i]
-        s, dist = closest_facet(a, x, X, nrm, facets, origin, h, shape, start, items, pad, w,
-                                skip_start, skip_nodes, deepest)
-        partner[a] = s
+        s, dist = closest_facet(a, x, X, nrm, facets, bins, pad, w, skip, deepest)
+        found.facet[a] = s
         if s < 0:
             continue
         L = facet_area_vector(x, facets[s], S)
@@ -177,8 +184,8 @@ def find_partners(x, X, slave, nrm, facets, origin, h, shape, start, items, pad,
             proj = x[p, k]
             for m in range(1, d):
                 proj += w[m] * (x[facets[s, m], k] - x[p, k])
-            normal[a, k] = -S[k] / L
-            g += (proj - x[a, k]) * normal[a, k]
+            found.normal[a, k] = -S[k] / L
+            g += (proj - x[a, k]) * found.normal[a, k]
         if beside != BESIDE_OFFSET and dist > abs(g) * (1.0 + 1e-9) + 1e-12 * (
                 math.sqrt(L) if d == 3 else L):
             if beside == BESIDE_IS_OPEN:
@@ -192,9 +199,9 @@ def find_partners(x, X, slave, nrm, facets, origin, h, shape, start, items, pad,
                 if side > 0.0:
                     g = dist
         for m in range(d):
-            partner_w[a, m] = w[m]
-        partner_dist[a] = dist
-        gap[a] = g
+            found.weights[a, m] = w[m]
+        found.distance[a] = dist
+        found.gap[a] = g
         if g < gmin:
             gmin = g
     return gmin

@@ -12,19 +12,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..contact.driver import ContactSystem
+from ..contact.driver import ContactStage, ContactSystem
 
 
 class GatheredContact:
     """The interface of ContactSystem seen from one rank's local numbering."""
 
-    def __init__(self, case, global_disc, part, comm, components):
+    def __init__(self, case, global_disc, part, comm):
         self.comm = comm
         self.system = s = ContactSystem(case, global_disc)
         n, d = global_disc.n_nodes, global_disc.dim
         self.part = part
         surface = s.surface_nodes
-        local = np.full(n, -1, np.int64)
+        self.local = local = np.full(n, -1, np.int64)   # local number of a global node
         local[part.nodes] = np.arange(len(part.nodes))
         where = local[surface]
         owned = (where >= 0) & (where < part.n_owned)
@@ -44,7 +44,6 @@ class GatheredContact:
         self.v = np.zeros((n, d))
         self.F = np.zeros((n, d, d))
         self.sigma = np.zeros((n, d, d))
-        self.grad = np.zeros((n, components, d + 1))   # the layout of FVStepper.grad
         self.fixed_value = np.zeros((n, d))
         self.force = np.zeros((n, d))
         self.dF = np.zeros((n, d, d))
@@ -84,17 +83,15 @@ class GatheredContact:
         self.face_weight[self.faces_local] = s.face_weight[self.faces_global]
 
     # ------------------------------------------------------------------ ContactSystem's interface
-    def stage(self, x, v, F, sigma, grad, reconstructed, dt, stage_index, time=0.0):
+    def stage(self, x, v, F, sigma, dt, stage_index, time=0.0) -> ContactStage:
         pairs = [(self.x, x), (self.v, v), (self.F, F), (self.sigma, sigma),
                  (self.fixed_value, self.fixed)]
-        if reconstructed:
-            pairs.append((self.grad, grad))
         self._gather(pairs)
-        self.system.stage(self.x, self.v, self.F, self.sigma, self.grad, reconstructed, dt,
-                          stage_index, time)
+        result = self.system.stage(self.x, self.v, self.F, self.sigma, dt, stage_index, time)
         self._scatter_state()
-        if reconstructed:
-            grad[self.held_local] = self.grad[self.held_global]
+        first_order = self.local[result.first_order]
+        return ContactStage(self.state, self.xdot, self.face_weight,
+                            first_order[first_order >= 0])
 
     def apply(self, force, dF, fixed_value):
         # the contact terms are added to the nodes' sums in the serial order (onto the

@@ -47,9 +47,7 @@ class ParallelFVStepper(FVStepper):
             setattr(G, name, None)
 
     def _make_contact(self, case, m):
-        # the gradients' components: of v, and with the upwind geometric flux of the stress
-        contact = GatheredContact(case, self.global_disc, self.part, self.comm,
-                                  self.grad.shape[1])
+        contact = GatheredContact(case, self.global_disc, self.part, self.comm)
         contact.fixed = self.loads.fixed_value
         return contact
 
@@ -64,11 +62,11 @@ class ParallelFVStepper(FVStepper):
     def _min(self, value):
         return self.comm.allreduce(float(value), op=self.MPI.MIN)
 
-    def _begin_state_exchange(self):
+    def _begin_state_exchange(self, stress_carried=False):
         # after the last stage the owned stresses are the new state's (carried to the next
-        # step, FVStepper._stress_carried): the ghosts take their owners' with the state,
-        # so that every rank uses one stress per node, the serial run's
-        carried = (self.sigma,) if self._stress_carried else ()
+        # step): the ghosts take their owners' with the state, so that every rank uses one
+        # stress per node, the serial run's
+        carried = (self.sigma,) if stress_carried else ()
         self._pending = self.halo.begin(self.v, self.F, self.x, *carried)
 
     def _end_state_exchange(self):
@@ -101,12 +99,11 @@ class ParallelFVStepper(FVStepper):
 
     # ------------------------------------------------------------------ the serial interface
     def check(self, step: int, t: float):
-        if self._bad is None:
+        bad = self.known.bad
+        if bad is None:
             from ..backends import cpu as K
             o = self.n_owned
-            local = K.state_is_bad(self.v[:o], self.F[:o], self.dim)
-            self._bad = self._first_bad(local)
-        bad = self._bad
+            bad = self._first_bad(K.state_is_bad(self.v[:o], self.F[:o], self.dim))
         if bad < 0:
             return
         G = self.global_disc

@@ -7,7 +7,7 @@ are the same whether files are written or not, so a run gives the same numbers w
 without an output folder.
 
 A stepper has: ``method``, ``stages_per_step``, ``history_columns()``, ``history_row()``,
-``stable_dt()``, ``step(dt)``, ``check(step, t)`` (raises SimulationError), ``snapshot()``
+``stable_dt()``, ``step(dt, with_monitors)``, ``check(step, t)`` (raises SimulationError), ``snapshot()``
 -> (points, cells, point data), ``body_fields()``, ``summary()``, ``state_arrays()`` and
 ``restore(arrays)``.
 """
@@ -297,8 +297,7 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             # a stepper that computes its monitors inside the step does so only when a
             # history row follows it (the last step records one whatever history_every is,
             # and computes its monitors then)
-            stepper.history_due = (steps + 1) % every == 0
-            stepper.step(dt)
+            stepper.step(dt, with_monitors=(steps + 1) % every == 0)
             last_dt = dt
             stop.armed()       # the kernels are compiled: a signal now stops after a step
             t = target if abs(t + dt - target) <= 1e-12 * end else t + dt

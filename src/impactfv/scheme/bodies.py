@@ -12,7 +12,9 @@ results by node runs in thread blocks; backends/cuda.py compiles them with
     dx_a/dt              = v_a
 
 ``options`` of the edge flux is the tuple (reconstruct, stress_reconstructed,
-upwind_geometric, muscl_chi, smooth_switch) of the run (scheme.stepper).
+upwind_geometric, muscl_chi, smooth_switch) of the run (scheme.stepper): the first three
+compile-time variants (compiled.variant, or constants of the CUDA kernels), the last two
+values.
 """
 
 import math
@@ -34,13 +36,25 @@ FACE_WORK_ROWS = 11
 FACE_TRACTION, FACE_STATE_VELOCITY, FACE_VELOCITY = 8, 9, 10
 
 
+def reconstructed_pair(ua, ub, ra, rb, phi_a, phi_b, bias):
+    """The two sides' values of one field at the midpoint of edge ab, from the nodes' values
+    ua, ub and their limited linear reconstructions ra = grad u_a . (X_mid - X_a),
+    rb = grad u_b . (X_mid - X_a): ua + ra and ub - rb, or with the U-MUSCL blend (``bias``
+    chi > 0) ua + (1 - c) ra + c phi_a (ub - ua) / 2 and ub - (1 - c) rb - c phi_b (ub - ua) / 2,
+    phi the limiter factors and c the edge's weight (physics.limiters.blend_weight)."""
+    if bias == 0.0:
+        return ua + ra, ub - rb
+    change = ub - ua
+    c = blend_weight(bias, change, ra, rb)
+    return (ua + ((1.0 - c) * ra + 0.5 * c * phi_a * change),
+            ub - ((1.0 - c) * rb + 0.5 * c * phi_b * change))
+
+
 def reconstructed_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bias, Sa, Sb):
     """Sa = sigma_a and Sb = sigma_b, reconstructed to the midpoint of edge e = ab (offset
     half[e] = X_mid - X_a) when the stress is reconstructed:
-    sigma_a + (1 - c) r_a + c phi_a (sigma_b - sigma_a) / 2 and
-    sigma_b - (1 - c) r_b - c phi_b (sigma_b - sigma_a) / 2,
-    r = grad sigma . (X_mid - X_a) (limited), phi the limiter factor (grad[., row, d]) and c
-    the U-MUSCL weight of the edge (physics.limiters.blend_weight of bias)."""
+    each component by :func:`reconstructed_pair` with r = grad sigma . (X_mid - X_a)
+    (limited) and phi the limiter factor (grad[., row, d])."""
     d = Sa.shape[0]
     for i in range(d):
         for j in range(i, d):
@@ -53,14 +67,8 @@ def reconstructed_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bia
                 for K in range(d):
                     ra += grad[a, row, K] * half[e, K]
                     rb += grad[b, row, K] * half[e, K]
-                if bias == 0.0:
-                    sa += ra
-                    sb -= rb
-                else:
-                    change = sb - sa
-                    c = blend_weight(bias, change, ra, rb)
-                    sa += (1.0 - c) * ra + 0.5 * c * grad[a, row, d] * change
-                    sb -= (1.0 - c) * rb + 0.5 * c * grad[b, row, d] * change
+                sa, sb = reconstructed_pair(sa, sb, ra, rb, grad[a, row, d], grad[b, row, d],
+                                            bias)
             Sa[i, j] = sa
             Sa[j, i] = sa
             Sb[i, j] = sb
@@ -109,14 +117,8 @@ def edge_flux(e, a, b, v, F, sigma, grad, props, C, C_len, half, options, contac
             for J in range(d):
                 ra += grad[a, i, J] * half[e, J]
                 rb += grad[b, i, J] * half[e, J]
-            if bias == 0.0:
-                va[i] += ra
-                vb[i] -= rb
-            else:
-                change = v[b, i] - v[a, i]
-                c = blend_weight(bias, change, ra, rb)
-                va[i] += (1.0 - c) * ra + 0.5 * c * grad[a, i, d] * change
-                vb[i] -= (1.0 - c) * rb + 0.5 * c * grad[b, i, d] * change
+            va[i], vb[i] = reconstructed_pair(va[i], vb[i], ra, rb, grad[a, i, d],
+                                              grad[b, i, d], bias)
     reconstructed_stresses(sigma, grad, a, b, e, half, stress_reconstructed, bias, Sa, Sb)
     face_traction(Sa, m, 1.0, fa)
     face_traction(Sb, m, 1.0, fb)
@@ -217,6 +219,20 @@ def node_update(a, alpha, dt, v0, F0, x0, v, F, x, force, dF, in_contact, contac
             F[a, i, J] = f
             Fa[i, J] = f
     return finite
+
+
+def node_monitors(a, v, props, volume, strain_energy_density):
+    """Node a's share of its body's monitors: kinetic energy m v.v / 2, strain energy
+    Omega W (``strain_energy_density`` W of its F) and the components of linear momentum
+    m v (the third 0 in 2D), m = rho Omega."""
+    d = v.shape[1]
+    mass = props[RHO] * volume[a]
+    v2 = 0.0
+    for i in range(d):
+        v2 += v[a, i] * v[a, i]
+    third = mass * v[a, d - 1] if d == 3 else 0.0
+    return 0.5 * mass * v2, volume[a] * strain_energy_density, mass * v[a, 0], \
+        mass * v[a, 1], third
 
 
 def node_energy_rate(a, v, force, F, sigma, dF, fixed_mask, props, Fa, Sa, Da):

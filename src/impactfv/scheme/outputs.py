@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..backends import cpu as K
+from ..backends.loops import StateValues
 
 
 class FVOutputs:
@@ -26,12 +27,13 @@ class FVOutputs:
 
     def history_row(self) -> list[float]:
         m = self.disc
-        if not self._monitors_fresh:
+        monitors = self.known.monitors
+        if monitors is None:     # not computed by the last stage: computed here
             self._host()
+            monitors = self.monitor_buf
             K.monitors(self.v, self.F, m.node_material, m.material_table, m.volume,
-                       m.body_start, self.monitor_buf, self.dim)
-            self._monitors_fresh = True
-        kinetic, strain, *momentum = self._sum(self.monitor_buf).sum(axis=0)
+                       m.body_start, monitors, self.dim)
+        kinetic, strain, *momentum = self._sum(monitors).sum(axis=0)
         extra = self.contact.history_values() if self.contact is not None else []
         # the energy balance: what the bodies hold minus the work done on them plus what the
         # scheme dissipated (upwinding at fronts and boundaries, the contacts) minus what the
@@ -101,7 +103,7 @@ class FVOutputs:
                   **self.energy.state()}
         if self.contact is not None:
             arrays["contact_memory"] = self.contact.memory
-        if self._stress_carried:
+        if self.known.stress:
             # the stress the last stage computed for the next step (backends.cpu.rk_update_last):
             # the continued run uses it as the uninterrupted one does, to the last bit
             arrays["sigma"] = self.sigma
@@ -115,7 +117,7 @@ class FVOutputs:
                 raise ValueError(f"{name} has shape {arrays[name].shape}, the case gives "
                                  f"{target.shape}")
             target[:] = arrays[name]
-        self._forget_state_values()
+        self.state_changed()
         # (a checkpoint without it, or with a stress that is not finite: computed again)
         carried = arrays.get("sigma")
         if carried is not None and carried.shape == self.sigma.shape \
@@ -123,9 +125,7 @@ class FVOutputs:
             self.sigma[:] = carried
             if self.stress_reconstructed:
                 self.loops.pack(slice(None))
-            self._stress_carried = True
-        self.loops.from_host()
-        self._host_stale = False
+            self.known = StateValues(stress=True)
         self.time = float(arrays["time"])
         self.energy.restore(arrays)
         self.loads.at(self.time)
