@@ -3,9 +3,9 @@
 numba runs a parallel loop on a pool of threads; between two parallel loops the threads
 wait for the next one. By default the OpenMP runtime lets a waiting thread spin (busy-wait)
 for a while. On a core that another process keeps busy a spinning thread steals the time
-slices its sibling threads need, and every barrier waits for a descheduled thread: runs with
-two threads were 7-31 times slower than with one (docs/performance.md, "Threads on a busy
-machine"). Importing this module (impactfv's ``__init__`` does) therefore asks the OpenMP
+slices its sibling threads need, and every barrier waits for a descheduled thread: a step
+with two threads took about 4 times as long as with one (docs/performance.md, "Threads on a
+busy machine"). Importing this module (impactfv's ``__init__`` does) therefore asks the OpenMP
 runtimes to wait passively, unless the environment already says otherwise:
 
 * ``OMP_WAIT_POLICY=passive`` (GNU libgomp, the runtime of numba's ``omp`` layer on Linux,
