@@ -95,6 +95,10 @@ CASES["2d_order2_bj_umuscl"]["run"]["muscl_chi"] = 0.6
 CASES["3d_order2_venkatakrishnan"]["run"]["output_interval"] = 2.5e-8
 # the smoothness switch (an option) on the CUDA copy of the flux as well
 CASES["3d_order2_venkatakrishnan"]["run"]["smooth_switch"] = 0.6
+# the angular momentum projection (an option; on the host in a CUDA run) on free bodies,
+# alone and in contact
+for name in ("2d_two_bars_coulomb", "2d_order1_central"):
+    CASES[name]["run"]["angular_momentum"] = "projected"
 # the compatibility relaxation is on by default (the other cases run it); these two run
 # without it, so that the CUDA path with it off stays compared with the CPU as well
 for name in ("2d_order2_bj_umuscl", "3d_order2_venkatakrishnan"):

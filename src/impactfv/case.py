@@ -96,6 +96,12 @@ class RunSettings(_Strict):
         "each node's shortest edge; 0: off. Damps the incompatible rotations of F that the "
         "upwind geometric flux makes grow under compression (docs/theory.md, Compatibility "
         "relaxation)")
+    angular_momentum: Literal["unprojected", "projected"] = Field(
+        "unprojected", description="projected: every free body (no held velocity component) "
+        "keeps its angular momentum to round-off, the interior fluxes' torque removed by a "
+        "rigid angular acceleration each stage; loads, contact and body forces keep theirs. "
+        "Its price: the energy of a spinning body is no longer monotone (docs/theory.md, "
+        "Momentum: linear and angular)")
     max_steps: Optional[int] = Field(None, gt=0, description="cap on the number of steps; "
                                      "unset: 10,000,000, and a run estimated to need more is "
                                      "refused before it starts")
@@ -114,7 +120,8 @@ class RunSettings(_Strict):
 
     # options of the finite-volume scheme alone: the FE baselines would ignore them
     FV_ONLY: ClassVar[tuple] = ("order", "limiter", "geometric_flux", "muscl_chi",
-                                "smooth_switch", "boundary_correction", "compatibility_time")
+                                "smooth_switch", "boundary_correction", "compatibility_time",
+                                "angular_momentum")
 
     @model_validator(mode="after")
     def _sensible_interval(self):

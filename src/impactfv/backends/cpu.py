@@ -480,3 +480,70 @@ def point_fields(F, node_material, table, pressure, von_mises, jac, stress, dim)
                 stress[a, i, j] = sigma[i, j]
         if d == 2:
             stress[a, 2, 2] = szz
+
+
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def projection_positions(last, dt, x0, x, v, contact_state, contact_xdot, owned, y):
+    """The positions the angular momentum projection (scheme.angular_momentum) takes at a
+    stage: the state's at the first stage, at the last the positions the step ends at,
+    x0 / 2 + (x + dt xdot) / 2 (scheme.bodies.node_update: xdot the contact velocity of a
+    node in contact, its velocity otherwise)."""
+    d = y.shape[1]
+    for a in range(owned):
+        for i in range(d):
+            if not last:
+                y[a, i] = x[a, i]
+            else:
+                xdot = contact_xdot[a, i] if contact_state[a] != 0 else v[a, i]
+                y[a, i] = 0.5 * x0[a, i] + 0.5 * (x[a, i] + dt * xdot)
+
+
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def body_moments(y, mass, force, body, owned, origin, out):
+    """The angular momentum projection's sums (scheme.angular_momentum). Per body k
+    (body[a] of node a < owned), about its point origin[k], r = y - origin:
+    out[k] = (sum m, sum m r (d), sum m r (x) r (d x d, row by row), sum r x f (3: only the
+    third in 2D)). Serial: a handful of bodies' sums, in one pass."""
+    d = y.shape[1]
+    out[:] = 0.0
+    r = np.empty(d)
+    for a in range(owned):
+        k = body[a]
+        m = mass[a]
+        for i in range(d):
+            r[i] = y[a, i] - origin[k, i]
+        out[k, 0] += m
+        for i in range(d):
+            out[k, 1 + i] += m * r[i]
+            for j in range(d):
+                out[k, 1 + d + d * i + j] += m * r[i] * r[j]
+        t = 1 + d + d * d
+        if d == 3:
+            out[k, t] += r[1] * force[a, 2] - r[2] * force[a, 1]
+            out[k, t + 1] += r[2] * force[a, 0] - r[0] * force[a, 2]
+        out[k, t + 2] += r[0] * force[a, 1] - r[1] * force[a, 0]
+
+
+@njit(cache=True, fastmath=KERNEL_FASTMATH)
+def add_rigid_spin(y, mass, body, owned, centre, spin, force):
+    """The angular momentum projection's correction (scheme.angular_momentum):
+    force_a += m_a spin_k x (y_a - centre_k) at the nodes a < owned of body k: the force
+    of a rigid angular acceleration spin_k (3: only the third in 2D) about the body's
+    centre of mass; it adds no force to the body, and spin_k = 0 leaves it as it is."""
+    d = y.shape[1]
+    for a in range(owned):
+        k = body[a]
+        w0, w1, w2 = spin[k, 0], spin[k, 1], spin[k, 2]
+        if w0 == 0.0 and w1 == 0.0 and w2 == 0.0:
+            continue
+        m = mass[a]
+        r0 = y[a, 0] - centre[k, 0]
+        r1 = y[a, 1] - centre[k, 1]
+        if d == 3:
+            r2 = y[a, 2] - centre[k, 2]
+            force[a, 0] += m * (w1 * r2 - w2 * r1)
+            force[a, 1] += m * (w2 * r0 - w0 * r2)
+            force[a, 2] += m * (w0 * r1 - w1 * r0)
+        else:
+            force[a, 0] -= m * w2 * r1
+            force[a, 1] += m * w2 * r0

@@ -500,6 +500,18 @@ class CUDALoops:
         """The contact stage on the host (HostContact); its result is on the device too."""
         return self.contact.stage(stage, stage_time)
 
+    def project_angular_momentum(self, projection, last, contact):
+        """The interior fluxes' torque removed from the free bodies' force
+        (scheme.angular_momentum), on the host: the force and the positions come down and
+        the force goes back (a copy of the force per stage; not yet a device kernel)."""
+        s, A = self.s, self.arrays
+        self.to_host()
+        if last:
+            A["x0"].copy_to_host(s.x0)
+        A["force"].copy_to_host(s.force)
+        projection.project(last, contact)
+        A["force"].copy_to_device(s.force)
+
     def contact_apply(self):
         self.contact.apply()
 

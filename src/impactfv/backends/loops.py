@@ -125,6 +125,11 @@ class CPULoops:
                          (s.force, s.dF, s.power, s.bc_force), s.dim)
         return s.power[0], s.bc_force
 
+    def project_angular_momentum(self, projection, last, contact):
+        """The interior fluxes' torque removed from the free bodies' force
+        (scheme.angular_momentum), on the host arrays."""
+        projection.project(last, contact)
+
     def contact_apply(self):
         s = self.s
         s.contact.apply(s.force, s.dF, s.loads.fixed_value)

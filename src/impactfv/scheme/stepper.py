@@ -16,6 +16,7 @@ from ..backends import cpu as K
 from ..backends.loops import UNKNOWN, CPULoops, StateValues
 from ..contact.driver import ContactStage
 from .discretisation import Discretisation, discretise
+from .angular_momentum import AngularMomentumProjection
 from .energy import EnergyBook
 from .outputs import FVOutputs
 from ..physics.limiters import IDS as LIMITER_IDS
@@ -65,6 +66,12 @@ class FVStepper(FVOutputs):
         self.mass = m.material_table[m.node_material, 0] * m.volume
         # the energy balance and the supports' reactions (scheme.energy)
         self.energy = EnergyBook(case, m, self.n_owned, self.mass, self._sum)
+        # [run] angular_momentum = "projected": the interior fluxes' torque removed from
+        # every free body (scheme.angular_momentum)
+        self.angular_projection = None
+        if case.run.angular_momentum == "projected":
+            projection = AngularMomentumProjection(self)
+            self.angular_projection = projection if projection.active else None
         # the contact's stage result when there is no contact (or between contacts' stages)
         self.no_contact = ContactStage.none(m.n_nodes, len(m.bface_node), m.dim)
         self.contact = None
@@ -204,6 +211,10 @@ class FVStepper(FVOutputs):
         if self.contact is not None:
             contact = loops.contact_stage(stage, self.time + (self.dt if stage else 0.0))
         power, bc_force = loops.fluxes(contact)
+        if self.angular_projection is not None:
+            # before the contact and body forces, which keep their torque
+            loops.project_angular_momentum(self.angular_projection, stage == len(STAGES) - 1,
+                                           contact)
         if self.contact is not None:
             loops.contact_apply()
         if relaxed:
