@@ -55,6 +55,9 @@ def _parser() -> argparse.ArgumentParser:
     p_run.add_argument("case", help="TOML case file")
     p_run.add_argument("-o", "--output", help="output folder (default results/<case stem>)")
     p_run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p_run.add_argument("--overwrite", action="store_true",
+                       help="start afresh in an output folder that impactfv did not make or "
+                            "that holds checkpoints (deleting the earlier run's outputs)")
     p_run.add_argument("--restart", metavar="DIR",
                        help="continue the run in DIR from its newest checkpoint")
     p_run.add_argument("--checkpoint-every", metavar="T", type=_positive_float,
@@ -201,6 +204,12 @@ def _run(args) -> int:
     case = load_case(args.case, overrides=overrides)
     if args.restart:
         out = Path(args.restart)
+        if args.output and Path(args.output).resolve() != out.resolve():
+            raise InputError(f"--restart {out} continues the run in its own folder; "
+                             f"-o {args.output} names another (drop -o, or copy the folder "
+                             "and restart the copy)")
+        if args.overwrite:
+            raise InputError("--overwrite starts afresh and --restart continues: give one")
         if not out.is_dir():
             raise InputError(f"{out}: --restart expects an existing output folder")
     else:
@@ -208,7 +217,7 @@ def _run(args) -> int:
     _check_output_dir(out)
     result = run(case, out, progress=False if args.no_progress else None,
                  restart=bool(args.restart), checkpoint_every=args.checkpoint_every,
-                 handle_signals=True)
+                 handle_signals=True, overwrite=args.overwrite)
     s = result.summary
     print(f"{s['status']}: {s['steps']} steps to t = {s['end_time']:.4e} s, {s['nodes']} nodes, "
           f"{s['wall_time_s']:.2f} s wall, "

@@ -10,6 +10,11 @@ from .. import interrupts
 from ..errors import InputError
 
 LOCK_NAME = ".impactfv.lock"
+#: the mark of a folder an impactfv run made: only such a folder (or an empty one) is
+#: written into without --overwrite
+MARKER_NAME = ".impactfv-output"
+# the folders a run writes into, inside its output folder
+SUBFOLDERS = ("checkpoints", "plots")
 # what a run writes; a fresh run removes these (and only these) from an earlier run
 OUTPUT_PATTERNS = ("fields_*.vtu", "fields.pvd", "walls_*.vtu", "walls.pvd", "history.csv",
                    "summary.json", "checkpoints/checkpoint_*.npz",
@@ -32,15 +37,54 @@ class OutputFolder:
     InputError; a lock left by a process that no longer exists is taken over. ``fresh``
     (not a restart): the outputs of an earlier run are removed first, so that its frames and
     checkpoints cannot be mistaken for this run's. Left-over temporary files of a killed run
-    are removed in any case."""
+    are removed in any case.
 
-    def __init__(self, path, fresh: bool):
+    What a run may touch: a fresh run writes only into a folder that is empty or that an
+    impactfv run made (its marker file), and not into one holding checkpoints that
+    ``--restart`` could continue, unless ``overwrite``; no run writes or deletes through a
+    symbolic link in the folder (a linked ``plots/``, ``checkpoints/`` or output file). Every
+    refusal comes before anything on disk changes."""
+
+    def __init__(self, path, fresh: bool, overwrite: bool = False):
         self.path = Path(path)
         self.fresh = fresh
+        self.overwrite = overwrite
         self.lock = self.path / LOCK_NAME
         self.held = False
 
+    def _refuse_what_is_not_ours(self):
+        """An InputError naming what this run would delete or write through that is not its
+        own; nothing has changed on disk yet."""
+        path = self.path
+        if not path.is_dir():
+            return
+        for name in SUBFOLDERS:
+            linked = path / name
+            if linked.is_symlink():
+                raise InputError(f"{linked}: is a symbolic link; a run writes only into "
+                                 "folders it made (remove the link, or choose another output "
+                                 "folder with -o)")
+        for pattern in OUTPUT_PATTERNS:
+            for found in path.glob(pattern):
+                if found.is_symlink():
+                    raise InputError(f"{found}: is a symbolic link; a run never writes or "
+                                     "deletes through a link (remove it, or choose another "
+                                     "output folder with -o)")
+        if not self.fresh or self.overwrite:
+            return
+        if not (path / MARKER_NAME).exists():
+            others = [p.name for p in path.iterdir() if p.name != LOCK_NAME]
+            if others:
+                raise InputError(f"{path}: the output folder is not empty and was not made "
+                                 f"by impactfv (it holds {others[0]!r}); choose an empty or "
+                                 "new folder with -o, or pass --overwrite to write into it")
+        elif any((path / "checkpoints").glob("checkpoint_*.npz")):
+            raise InputError(f"{path}: holds checkpoints of an earlier run; continue it with "
+                             f"--restart {path}, or pass --overwrite to start afresh (which "
+                             "deletes them)")
+
     def __enter__(self):
+        self._refuse_what_is_not_ours()
         self.path.mkdir(parents=True, exist_ok=True)
         for attempt in range(2):
             try:
@@ -69,6 +113,7 @@ class OutputFolder:
             for pattern in OUTPUT_PATTERNS:
                 for old in self.path.glob(pattern):
                     old.unlink(missing_ok=True)
+        (self.path / MARKER_NAME).touch()
         return self
 
     def __exit__(self, *exc):

@@ -89,7 +89,8 @@ class Schedule:
 
 
 def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool = False,
-        checkpoint_every: float | None = None, handle_signals: bool = False) -> RunResult:
+        checkpoint_every: float | None = None, handle_signals: bool = False,
+        overwrite: bool = False) -> RunResult:
     """Run a validated case with its method. Writes files only when ``output_dir`` is given.
 
     ``progress``: show a progress bar (default: when standard error is a terminal).
@@ -97,6 +98,8 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     ``checkpoint_every``: write a checkpoint every so many seconds of simulated time.
     ``handle_signals``: on SIGINT/SIGTERM write a checkpoint and valid outputs, then raise
     :class:`Interrupted` (the CLI turns it into exit code 130 or 143).
+    ``overwrite``: a fresh run may write into a folder that impactfv did not make or that
+    holds checkpoints (io.folder.OutputFolder refuses both otherwise).
     """
     from ..geometry.penetration import find_overlaps
     from .methods import make_stepper
@@ -116,10 +119,11 @@ def run(case: Case, output_dir=None, progress: bool | None = None, restart: bool
     # kernels follow it) and given back when the run ends
     with using_threads(threads):
         return _run(case, output_dir, progress, restart, checkpoint_every, handle_signals,
-                    make_stepper)
+                    make_stepper, overwrite)
 
 
-def _run(case, output_dir, progress, restart, checkpoint_every, handle_signals, make_stepper):
+def _run(case, output_dir, progress, restart, checkpoint_every, handle_signals, make_stepper,
+         overwrite=False):
     wall_start = _time.perf_counter()
     resident = resident_bytes()
     stepper = make_stepper(case)
@@ -141,7 +145,7 @@ def _run(case, output_dir, progress, restart, checkpoint_every, handle_signals, 
                        fingerprint=case_fingerprint(case), title=case.title,
                        wall_start=wall_start, walls=case_walls(case),
                        contacts=case_contacts(case), description=case_description(case),
-                       preflight=refuse, source=case.source)
+                       preflight=refuse, source=case.source, overwrite=overwrite)
 
 
 def case_walls(case) -> list:
@@ -173,13 +177,16 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
                 handle_signals: bool = False, fingerprint: str = "", title: str | None = None,
                 wall_start: float | None = None, walls=(), contacts=None,
                 description: dict | None = None, preflight=None,
-                source: str = "") -> RunResult:
+                source: str = "", overwrite: bool = False) -> RunResult:
     """Run ``stepper`` to ``schedule.end_time``; see :func:`run` for the options. The output
     folder, if any, is locked for the run (io.folder.OutputFolder). ``walls``: rigid walls
     drawn in the frames (:func:`case_walls`); ``contacts``: described in the summary;
     ``description``: the case's key table (io.checkpoint.case_description), so that a refused
     restart can name what changed; ``preflight(stepper, t, steps)``: a reason to refuse a
-    restarted run before it continues, or None."""
+    restarted run before it continues, or None. ``overwrite``: see :func:`run`. The options
+    are checked before the folder is touched."""
+    _check_run_options(output_dir, restart, checkpoint_every, handle_signals,
+                       schedule.end_time)
     args = (stepper, schedule, output_dir, progress, restart, checkpoint_every, handle_signals,
             fingerprint, title, wall_start, walls, contacts, description or {}, preflight,
             source)
@@ -187,13 +194,13 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
     if output_dir is None:
         return _run_stepper(*args)
     if comm is None:
-        with OutputFolder(output_dir, fresh=not restart):
+        with OutputFolder(output_dir, fresh=not restart, overwrite=overwrite):
             return _run_stepper(*args)
     # under MPI the files are rank 0's (it holds the folder's lock, and tells the others
     # when it cannot); the others run the same loop without writing
     folder, refused = None, None
     if comm.Get_rank() == 0:
-        folder = OutputFolder(output_dir, fresh=not restart)
+        folder = OutputFolder(output_dir, fresh=not restart, overwrite=overwrite)
         try:
             folder.__enter__()
         except InputError as exc:
@@ -208,16 +215,20 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
             folder.__exit__(None, None, None)
 
 
-def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_every,
-                 handle_signals, fingerprint, title, wall_start, walls, contacts, description,
-                 preflight, source) -> RunResult:
+def _check_run_options(output_dir, restart, checkpoint_every, handle_signals, end):
+    """Refuse options that cannot run, before anything on disk changes."""
     if (restart or checkpoint_every or handle_signals) and output_dir is None:
         raise InputError("restart and checkpoints need an output folder")
-    end = schedule.end_time
     if checkpoint_every is not None and not (checkpoint_every >= 1e-9 * end and
                                              math.isfinite(checkpoint_every)):
         raise InputError(f"--checkpoint-every: expected a positive time of at least 1e-9 x "
                          f"end_time ({1e-9 * end:.3g} s), got {checkpoint_every}")
+
+
+def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_every,
+                 handle_signals, fingerprint, title, wall_start, walls, contacts, description,
+                 preflight, source) -> RunResult:
+    end = schedule.end_time
     wall_start = _time.perf_counter() if wall_start is None else wall_start
     interval = schedule.interval
     out = Path(output_dir) if output_dir is not None else None

@@ -1,0 +1,116 @@
+"""A run never deletes what is not its own (io.folder.OutputFolder, docs/failures.md): it
+writes only into an empty folder or one an impactfv run made, never through a symbolic link,
+never over checkpoints --restart could continue without --overwrite, and every refusal comes
+before anything on disk changes. Through the CLI, as a user meets it."""
+
+import os
+
+import pytest
+from conftest import run_cli
+
+CASE = """
+[run]
+end_time = 1.0e-6
+output_interval = 5.0e-7
+
+[[material]]
+name = "copper"
+model = "neo_hookean"
+density = 8930.0
+youngs_modulus = 117.0e9
+poisson_ratio = 0.35
+
+[[body]]
+name = "block"
+material = "copper"
+velocity = ["10", "0"]
+mesh = { generator = "rectangle", origin = [0, 0], size = [0.01, 0.004], divisions = [10, 4] }
+"""
+
+
+@pytest.fixture
+def project(tmp_path):
+    (tmp_path / "case.toml").write_text(CASE)
+    return tmp_path
+
+
+def cli(project, *args):
+    return run_cli("run", "case.toml", "--no-progress", *args, cwd=project,
+                   env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+
+
+def tree(folder):
+    """Every file under ``folder`` with its size and modification time."""
+    return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns)
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def refused(proc, *words):
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2, proc.stderr
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    for word in words:
+        assert word in lines[0], lines[0]
+
+
+def test_a_refused_option_leaves_the_previous_results(project):
+    assert cli(project, "-o", "X").returncode == 0
+    before = tree(project / "X")
+    for bad in ("1e-20", "1e-300"):
+        refused(cli(project, "-o", "X", "--checkpoint-every", bad), "--checkpoint-every")
+        assert tree(project / "X") == before
+
+
+@pytest.mark.parametrize("theirs", ["history.csv", "notes.txt", "plots/figure.png"])
+def test_a_folder_impactfv_did_not_make_is_refused_unless_overwrite(project, theirs):
+    folder = project / "results_of_someone"
+    (folder / theirs).parent.mkdir(parents=True, exist_ok=True)
+    (folder / theirs).write_text("kept")
+    refused(cli(project, "-o", folder.name), "not empty", "--overwrite")
+    assert (folder / theirs).read_text() == "kept"
+    assert cli(project, "-o", folder.name, "--overwrite").returncode == 0
+    assert (folder / "history.csv").exists()
+
+
+def test_checkpoints_that_restart_could_use_are_not_deleted_silently(project):
+    assert cli(project, "-o", "X", "--checkpoint-every", "5e-7").returncode == 0
+    checkpoints = sorted((project / "X" / "checkpoints").glob("checkpoint_*.npz"))
+    assert checkpoints
+    refused(cli(project, "-o", "X"), "checkpoints", "--restart", "--overwrite")
+    assert sorted((project / "X" / "checkpoints").glob("checkpoint_*.npz")) == checkpoints
+    # a folder the run made and holding no checkpoints is simply rerun
+    assert cli(project, "-o", "X", "--overwrite").returncode == 0
+    assert not list((project / "X" / "checkpoints").glob("checkpoint_*.npz"))
+    assert cli(project, "-o", "X").returncode == 0
+
+
+@pytest.mark.parametrize("link", ["plots", "checkpoints", "history.csv"])
+def test_nothing_is_written_or_deleted_through_a_symbolic_link(project, link):
+    elsewhere = project / "elsewhere"
+    elsewhere.mkdir()
+    (elsewhere / "keep.png").write_text("kept")
+    (elsewhere / "checkpoint_000000001.npz").write_text("kept")
+    (elsewhere / "file.csv").write_text("kept")
+    assert cli(project, "-o", "X").returncode == 0
+    target = elsewhere / "file.csv" if link == "history.csv" else elsewhere
+    path = project / "X" / link
+    if path.is_dir():
+        for p in path.iterdir():
+            p.unlink()
+        path.rmdir()
+    else:
+        path.unlink(missing_ok=True)
+    path.symlink_to(target)
+    before = tree(elsewhere)
+    for extra in ([], ["--overwrite"]):
+        refused(cli(project, "-o", "X", *extra), "symbolic link")
+        assert tree(elsewhere) == before
+
+
+def test_restart_into_another_folder_is_refused(project):
+    assert cli(project, "-o", "X", "--checkpoint-every", "5e-7").returncode == 0
+    before = tree(project / "X")
+    refused(cli(project, "--restart", "X", "-o", "Y"), "--restart", "-o Y")
+    refused(cli(project, "--restart", "X", "--overwrite"), "--overwrite")
+    assert tree(project / "X") == before
+    assert not (project / "Y").exists()
