@@ -119,6 +119,30 @@ def test_restart_from_a_checkpoint_gives_the_same_result(tmp_path):
             <= 1e-12 * 0.01
 
 
+def test_restart_with_a_thinned_history_continues(tmp_path):
+    """With [output] history_every = 7 every checkpoint has its own step in the history
+    (a row at the checkpoint besides every 7th step), so a restart from each of them is
+    accepted and ends where the uninterrupted run ends."""
+    case = _toml_dict(BARS.replace("DIV", "20, 2"))
+    case["output"] = {"history_every": 7}
+    full = run(load_case(case), tmp_path / "full", checkpoint_every=4e-6)
+    checkpoints = sorted((tmp_path / "full" / "checkpoints").glob("*.npz"))
+    assert len(checkpoints) >= 3
+    steps = full.history["time"]
+    assert len(steps) < 0.5 * full.summary["steps"]       # thinned
+    for k, checkpoint in enumerate(checkpoints[:-1]):
+        part = tmp_path / f"part{k}"
+        (part / "checkpoints").mkdir(parents=True)
+        import shutil
+        shutil.copy(checkpoint, part / "checkpoints" / checkpoint.name)
+        resumed = run(load_case(case), part, restart=True)
+        assert resumed.summary["steps"] == full.summary["steps"]
+        for name in ("left", "right"):
+            assert np.abs(resumed.bodies[name]["points"] - full.bodies[name]["points"]).max() \
+                <= 1e-12 * 0.01
+        assert np.all(np.diff(resumed.history["time"]) > 0)
+
+
 def test_restart_refuses_a_checkpoint_of_another_case(tmp_path):
     case = _toml_dict(BARS.replace("DIV", "20, 2"))
     run(load_case(case), tmp_path, checkpoint_every=4e-6)

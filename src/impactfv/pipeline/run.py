@@ -256,6 +256,9 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             writer.write(t, *stepper.snapshot())
 
     def checkpoint(t, steps, next_output) -> Path:
+        # the checkpoint's own step is in its history, whatever history_every is
+        if recorded[0] != steps:
+            record(t, last_dt, steps)
         arrays = {"t": np.array(t), "steps": np.array(steps),
                   "next_output": np.array(next_output), "fingerprint": np.array(fingerprint),
                   "version": np.array(__version__), "method": np.array(stepper.method),
@@ -331,8 +334,6 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
             if comm is not None:   # every rank stops after the same step
                 stop.signum = comm.allreduce(stop.signum or 0, op=_mpi_max()) or None
             if stop.signum is not None:
-                if recorded[0] != steps:
-                    record(t, dt, steps)
                 path = checkpoint(t, steps, next_output)
                 finish("interrupted")
                 raise Interrupted(stop.signum, path)
@@ -456,7 +457,8 @@ def _different_case(path, data, description) -> str:
 def checkpoint_problem(data, expected, columns) -> str | None:
     """Why the arrays of a checkpoint cannot be continued from, or None: every array a
     restart reads must be there with the right shape and type, the time finite and >= 0,
-    the step count >= 0 and one history row per step, the state finite."""
+    the step count >= 0 and at most one history row per step (history_every thins them),
+    the state finite."""
     def scalar(key, kinds):
         a = data.get(key)
         if a is None:
@@ -479,8 +481,11 @@ def checkpoint_problem(data, expected, columns) -> str | None:
         return "its history columns do not match the case"
     for k in columns:
         h = data.get("h_" + k)
-        if h is None or h.ndim != 1 or h.dtype.kind != "f" or len(h) != steps + 1:
-            return f"history column {k!r} does not have one row per step ({steps + 1})"
+        if h is None or h.ndim != 1 or h.dtype.kind != "f" or not 1 <= len(h) <= steps + 1:
+            return (f"history column {k!r} does not have between 1 and one row per step "
+                    f"({steps + 1})")
+        if len(h) != len(data["h_time"]):
+            return f"history column {k!r} is not as long as the times"
     times = data["h_time"]
     if not (np.all(np.isfinite(times)) and np.all(np.diff(times) >= 0) and times[-1] == t):
         return "its history times are not finite, increasing and ending at t"
