@@ -89,6 +89,33 @@ def test_failing_run_stops_with_location_and_keeps_outputs(tmp_path):
     assert json.loads((tmp_path / "out" / "summary.json").read_text())["status"] == "failed"
 
 
+@pytest.mark.parametrize("expression,when", [("log(5.5e-6-t)", "6e-06"),
+                                             ("sqrt(5.5e-6-t)", "6e-06")])
+def test_a_load_that_turns_non_finite_mid_run_is_a_failed_simulation(tmp_path, expression,
+                                                                     when):
+    """A load expression good at the start and non-finite later: exit 3 with one line
+    naming the key and the time, the history up to the last good step kept, and a summary
+    saying why; the same expression non-finite at t = 0 stays an input error (exit 2)."""
+    import json
+    text = FAILING.replace("cfl = 1.0", "").replace('velocity = ["0", "3000*heaviside(x - 0.005)"]',
+                                                   'velocity = ["0", "0"]')
+    text += f'boundary = [{{ region = "xmax", traction = ["{expression}", 0] }}]\n'
+    case = tmp_path / "load.toml"
+    case.write_text(text)
+    proc = cli("run", case, "-o", tmp_path / "out", "--no-progress")
+    assert proc.returncode == 3, proc.stderr
+    message = proc.stderr.strip().splitlines()
+    assert len(message) == 1 and "Traceback" not in proc.stderr
+    assert "body[0].boundary[0].traction.x" in message[0] and f"t = {when} s" in message[0]
+    rows = assert_outputs_readable(tmp_path / "out")
+    assert rows.shape[0] >= 2 and rows[-1, 0] < float(when)
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["status"] == "failed" and "traction.x" in summary["reason"]
+    case.write_text(text.replace(expression, "1/t"))
+    proc = cli("run", case, "-o", tmp_path / "out2", "--no-progress")
+    assert proc.returncode == 2 and "traction.x" in proc.stderr
+
+
 def test_failure_from_python_names_the_step():
     with pytest.raises(SimulationError) as info:
         run(load_case(_toml_dict(FAILING)))

@@ -291,11 +291,11 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     stop = SignalFlag(handle_signals)
     loop_start = _time.perf_counter()
 
-    def finish(status, last_dt=None):
+    def finish(status, last_dt=None, reason=None):
         if last_dt is not None and recorded[0] != steps:
             record(t, last_dt, steps)      # the last step, whatever history_every is
         return _finish(files, history, stepper, title, steps, t, wall_start, loop_start,
-                       status, contacts)
+                       status, contacts, reason)
 
     last_dt = None
     try:
@@ -343,8 +343,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         if checkpoint_every and checkpointed != steps:
             # the end is a checkpoint too: a finished run can be continued to a later end_time
             checkpoint(t, steps, next_output)
-    except SimulationError:
-        finish("failed")
+    except SimulationError as exc:
+        finish("failed", reason=str(exc))
         raise
     finally:
         stop.restore()
@@ -514,7 +514,7 @@ def checkpoint_problem(data, expected, columns) -> str | None:
 
 
 def _finish(out, history, stepper, title, steps, t, wall_start, loop_start, status,
-            contacts=None):
+            contacts=None, reason=None):
     loop_time = _time.perf_counter() - loop_start
     info = stepper.summary()
     summary = {
@@ -526,6 +526,8 @@ def _finish(out, history, stepper, title, steps, t, wall_start, loop_start, stat
             else None,
         "final": history.last(),
     }
+    if reason is not None:
+        summary["reason"] = reason          # why a failed run stopped
     if contacts is not None:
         summary["contacts"] = contacts
     if out is not None:

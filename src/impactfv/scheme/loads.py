@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..case import LOAD_VARIABLES, Case
-from ..errors import InputError
+from ..errors import InputError, SimulationError
 from ..expr import compile_expression
 
 
@@ -36,8 +36,11 @@ class _Component:
             return self.value
         out = self.value(*points.T, np.full(len(points), t))
         if not np.all(np.isfinite(out)):
-            raise InputError(f"{self.key}: the expression gives non-finite values at "
-                             f"t = {t:.6g} s")
+            message = f"{self.key}: the expression gives non-finite values at t = {t:.6g} s"
+            if t > 0.0:
+                # the case was good until now: a failed simulation, whose outputs are kept
+                raise SimulationError(message, time=t)
+            raise InputError(message)
         return out
 
 
