@@ -170,6 +170,21 @@ def test_restart_with_a_thinned_history_continues(tmp_path):
         assert np.all(np.diff(resumed.history["time"]) > 0)
 
 
+@pytest.mark.parametrize("keep", [None, 2])
+def test_only_the_newest_checkpoints_are_kept(tmp_path, keep):
+    """[output] keep_checkpoints (default 3): the run keeps its newest checkpoints and
+    deletes the older ones as it writes, and a restart from what is left continues."""
+    case = _toml_dict(BARS.replace("DIV", "20, 2"))
+    if keep is not None:
+        case["output"] = {"keep_checkpoints": keep}
+    full = run(load_case(case), tmp_path, checkpoint_every=1e-6)
+    kept = sorted((tmp_path / "checkpoints").glob("checkpoint_*.npz"))
+    assert len(kept) == (keep or 3)
+    assert kept[-1].name == f"checkpoint_{full.summary['steps']:09d}.npz"
+    case["run"]["end_time"] = 2.0e-5
+    assert run(load_case(case), tmp_path, restart=True).summary["status"] == "completed"
+
+
 def test_restart_refuses_a_checkpoint_of_another_case(tmp_path):
     case = _toml_dict(BARS.replace("DIV", "20, 2"))
     run(load_case(case), tmp_path, checkpoint_every=4e-6)

@@ -395,6 +395,10 @@ class OutputSpec(_Strict):
                                "last step)")
     fields: Optional[list[str]] = Field(None, description="point fields of the frames "
                                         "(default: all)")
+    keep_checkpoints: int = Field(3, ge=1, description="how many of the newest checkpoints "
+                                  "a run keeps (a restart falls back to an older one when the "
+                                  "newest is damaged); older ones are deleted as new ones "
+                                  "are written")
 
     @field_validator("fields")
     @classmethod

@@ -22,7 +22,8 @@ from ..errors import InputError, printable
 from .writers import atomic_replace
 
 #: keys of the case a restart may change: they say how long to run and what to write
-RESTART_MAY_CHANGE = ("run.end_time", "run.output_interval", "run.max_steps")
+RESTART_MAY_CHANGE = ("run.end_time", "run.output_interval", "run.max_steps",
+                      "output.keep_checkpoints")
 BAD_SUFFIX = ".unreadable"
 
 
@@ -79,8 +80,10 @@ def changed_keys(old: dict, new: dict) -> list[str]:
     return sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
 
 
-def save_checkpoint(folder: Path, steps: int, arrays: dict[str, np.ndarray]) -> Path:
-    """Write ``checkpoint_<steps>.npz`` atomically; returns its path."""
+def save_checkpoint(folder: Path, steps: int, arrays: dict[str, np.ndarray],
+                    keep: int | None = None) -> Path:
+    """Write ``checkpoint_<steps>.npz`` atomically; returns its path. ``keep``: then delete
+    all but the newest ``keep`` checkpoints of the folder (None: keep all)."""
     path = Path(folder) / f"checkpoint_{steps:09d}.npz"
 
     def dump(fh):
@@ -88,6 +91,9 @@ def save_checkpoint(folder: Path, steps: int, arrays: dict[str, np.ndarray]) -> 
         np.savez(buf, **arrays)
         fh.write(buf.getvalue())
     atomic_replace(path, dump)
+    if keep is not None:
+        for old in sorted(Path(folder).glob("checkpoint_*.npz"))[:-keep]:
+            old.unlink(missing_ok=True)
     return path
 
 

@@ -75,13 +75,15 @@ def history_memory_problem(case: Case, dt: float, t: float = 0.0, steps_done: in
 class Schedule:
     """When a run stops and when it writes: ``output_interval`` (default end_time / 10)
     between frames, a history row every ``history_every`` steps (and at the last step),
-    the frames' point ``fields`` (None: all the stepper has)."""
+    the frames' point ``fields`` (None: all the stepper has), the newest
+    ``keep_checkpoints`` checkpoints kept."""
 
     end_time: float
     output_interval: float | None = None
     max_steps: int = 10_000_000
     history_every: int = 1
     fields: tuple | None = None
+    keep_checkpoints: int = 3
 
     @property
     def interval(self) -> float:
@@ -131,7 +133,8 @@ def _run(case, output_dir, progress, restart, checkpoint_every, handle_signals, 
     output = case.output
     schedule = Schedule(case.run.end_time, case.run.output_interval,
                         case.run.max_steps or DEFAULT_MAX_STEPS, output.history_every,
-                        None if output.fields is None else tuple(output.fields))
+                        None if output.fields is None else tuple(output.fields),
+                        output.keep_checkpoints)
 
     def refuse(stepper, t, steps):
         dt = stepper.stable_dt()
@@ -269,7 +272,8 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
                   "snapshot_files": np.array([e[1] for e in writer.entries] or [""])}
         arrays.update({"h_" + k: history.data[k][:history.n] for k in history.columns})
         arrays.update({"state_" + k: a for k, a in stepper.state_arrays().items()})
-        return save_checkpoint(out / "checkpoints", steps, arrays) if root else None
+        return save_checkpoint(out / "checkpoints", steps, arrays,
+                               keep=schedule.keep_checkpoints) if root else None
 
     if files is not None:
         out.mkdir(parents=True, exist_ok=True)
