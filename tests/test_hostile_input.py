@@ -861,3 +861,33 @@ def test_compare_gives_the_fe_methods_the_case_without_the_fv_options(tmp_path):
     assert fe.spec.run.method == "fem-t3" and fe.spec.run.muscl_chi == 0.0
     fv = method_case(case, "fv")
     assert fv.spec.run.muscl_chi == 0.6 and fv.spec.run.geometric_flux == "central"
+
+
+# ------------------------------------------------ names that become history.csv columns
+@pytest.mark.parametrize("name", ['bar,left', 'bar\\"', 'bar\\nx', 'bar\\tx'])
+def test_names_that_would_break_the_history_csv_are_refused(tmp_path, name):
+    path = write_case(tmp_path)
+    path.write_text(path.read_text().replace('name = "bar"', f'name = "{name}"'))
+    assert_input_error(run_cli("run", path, "-o", tmp_path / "out"), "body[0].name",
+                       "history.csv")
+    path = write_case(tmp_path, extra=f'boundary = [{{ region = "{name}", velocity = '
+                                      '{ x = 0.0 } }]\n')
+    assert_input_error(run_cli("run", path, "-o", tmp_path / "out"),
+                       "body[0].boundary[0].region", "history.csv")
+
+
+def test_reaction_columns_never_collide(tmp_path):
+    """A region named in two boundary entries gets a column of its own that no other
+    region's name gives: every reaction is in the history."""
+    import numpy as np
+
+    from impactfv import load_case, run
+
+    case = load_case(write_case(tmp_path, extra=(
+        'boundary = [{ region = "xmin", velocity = { x = 0.0 } },\n'
+        '            { region = "xmin", velocity = { y = 0.0 } },\n'
+        '            { region = "xmax", velocity = { x = 0.0 } }]\n')))
+    history = run(case).history
+    columns = [c for c in history if c.startswith("reaction_")]
+    assert len(columns) == len(set(columns)) == 6
+    assert np.any(np.abs(history["reaction_xmin_fx"]) > 0)

@@ -637,6 +637,15 @@ def _refuse_meshes_too_large(spec: CaseSpec, source: str):
                          f"{largest.nodes:,} nodes; the run {problem}")
 
 
+def _check_column_name(name: str, key: str):
+    """Body and region names become history.csv column names: no comma, quote or control
+    character, which would break the CSV."""
+    bad = [ch for ch in name if ch in ',"' or not ch.isprintable()]
+    if bad:
+        raise InputError(f"{key}: {name!r} contains {bad[0]!r}; names become history.csv "
+                         "columns, so commas, quotes and control characters are not allowed")
+
+
 def _check_names(spec: CaseSpec, source: str):
     seen = set()
     for i, m in enumerate(spec.material):
@@ -645,6 +654,9 @@ def _check_names(spec: CaseSpec, source: str):
         seen.add(m.name)
     bodies = set()
     for i, b in enumerate(spec.body):
+        _check_column_name(b.name, f"{source}: body[{i}].name")
+        for j, entry in enumerate(b.boundary):
+            _check_column_name(entry.region, f"{source}: body[{i}].boundary[{j}].region")
         if b.name in bodies:
             raise InputError(f"{source}: body[{i}].name: duplicated name {b.name!r}")
         bodies.add(b.name)

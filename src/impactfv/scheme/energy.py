@@ -53,12 +53,17 @@ class EnergyBook:
                 rows.append(spec)
                 names.append(f"{body.name}_{spec.region}" if several else spec.region)
         self.reaction_rows = [k for k, spec in enumerate(rows, start=1) if m.bc_fixed[k].any()]
-        seen = {}
+        # a region named in two entries gets _2, _3, ... but never the name of another
+        # entry's region (a region "L" twice beside a region "L_2": L, L_3, L_2)
+        bases = {names[k - 1] for k in self.reaction_rows}
         self.reaction_names = []
         for k in self.reaction_rows:
-            base = names[k - 1]
-            seen[base] = seen.get(base, 0) + 1
-            self.reaction_names.append(base if seen[base] == 1 else f"{base}{seen[base]}")
+            base = name = names[k - 1]
+            n = 2
+            while name in self.reaction_names or (name != base and name in bases):
+                name = f"{base}_{n}"
+                n += 1
+            self.reaction_names.append(name)
         d, owned = m.dim, self.n_owned
         if self.reaction_rows:
             cols = [m.bc_nodes[k][m.bc_nodes[k] < owned] for k in self.reaction_rows]
