@@ -247,6 +247,12 @@ def test_mesh_checks_name_the_problem():
     dup = np.array([[0, 0], [1, 0], [0, 1], [1, 0]], float)
     with pytest.raises(InputError, match="duplicated node"):
         validate_and_orient(Mesh(dup, np.array([[0, 1, 2], [3, 2, 0]])), "m.msh")
+    # nearly the same point, at any offset and size of the mesh: still one point meant twice
+    for offset, size, gap in ((0.0, 1.0, 1.5e-9), (1e3, 1.0, 3e-7), (0.0, 1e-2, 1.5e-11),
+                              (0.33, 1e-2, 1e-11)):
+        near = offset + size * np.array([[0, 0], [1, 0], [0, 1], [1 + gap / size, 0]])
+        with pytest.raises(InputError, match="duplicated node"):
+            validate_and_orient(Mesh(near, np.array([[0, 1, 2], [3, 2, 0]])), "m.msh")
     fan = np.array([[0, 0], [1, 0], [0, 1], [0, -1], [1, 1]], float)
     with pytest.raises(InputError, match="more than two"):
         validate_and_orient(Mesh(fan, np.array([[0, 1, 2], [0, 1, 3], [0, 1, 4]])), "m.msh")

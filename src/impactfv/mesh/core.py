@@ -178,13 +178,15 @@ def validate_and_orient(mesh: Mesh, source: str) -> Mesh:
         raise InputError(f"{source}: {int((counts > 2).sum())} {what}(s) shared by more than "
                          f"two {kinds}"
                          " (the mesh is not a manifold)")
-    rounded = np.round(pts / scale ** (1.0 / d), 9)
-    order = np.lexsort(rounded.T[::-1])
-    same = np.all(rounded[order[1:]] == rounded[order[:-1]], axis=1)
-    if same.any():
-        raise InputError(f"{source}: {int(same.sum())} duplicated node(s) at the same "
-                         f"position (merge them so the {kinds}"
-                         " connect)")
+    # nodes closer than 1e-6 of the median edge are one point meant twice (a legitimate mesh
+    # has no such pair; left apart, the body would run as pieces with a crack between them)
+    from scipy.spatial import cKDTree
+    pairs = cKDTree(pts).query_pairs(1e-6 * scale ** (1.0 / d), output_type="ndarray")
+    if len(pairs):
+        a, b = (int(i) for i in pairs[0])
+        raise InputError(f"{source}: {len(pairs)} pair(s) of duplicated nodes (closer than "
+                         f"1e-6 of the median edge), first nodes {a} and {b}; merge them so "
+                         f"the {kinds} connect")
     # now all positively oriented: the two cells of an interior facet see it with opposite
     # orientations; the same orientation means both lie on one side (a fold, where cells
     # overlap and the body would get their mass twice)
