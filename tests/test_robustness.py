@@ -185,6 +185,30 @@ def test_only_the_newest_checkpoints_are_kept(tmp_path, keep):
     assert run(load_case(case), tmp_path, restart=True).summary["status"] == "completed"
 
 
+def test_a_signal_during_the_final_writes_lets_them_finish(tmp_path, monkeypatch):
+    """Ctrl-C while the last checkpoint and the summary are written: the signal is only
+    noted, every file is written, and the run ends completed (before, the handlers were
+    given back first and the signal cut the writes short)."""
+    import json
+    import os
+
+    import importlib
+    pipeline = importlib.import_module("impactfv.pipeline.run")
+    written = pipeline.write_summary
+
+    def interrupted_write(path, summary):
+        os.kill(os.getpid(), signal.SIGINT)
+        written(path, summary)
+
+    monkeypatch.setattr(pipeline, "write_summary", interrupted_write)
+    case = _toml_dict(BARS.replace("DIV", "20, 2"))
+    result = run(load_case(case), tmp_path, checkpoint_every=4e-6, handle_signals=True)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["status"] == result.summary["status"] == "completed"
+    assert (tmp_path / "checkpoints" / f"checkpoint_{summary['steps']:09d}.npz").exists()
+    assert_outputs_readable(tmp_path)
+
+
 def test_restart_refuses_a_checkpoint_of_another_case(tmp_path):
     case = _toml_dict(BARS.replace("DIV", "20, 2"))
     run(load_case(case), tmp_path, checkpoint_every=4e-6)

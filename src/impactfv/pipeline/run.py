@@ -347,6 +347,9 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         if checkpoint_every and checkpointed != steps:
             # the end is a checkpoint too: a finished run can be continued to a later end_time
             checkpoint(t, steps, next_output)
+        # the last files are written while signals are still only noted: a signal now lets
+        # them finish, and the run ends completed
+        summary = finish(status, last_dt)
     except SimulationError as exc:
         finish("failed", reason=str(exc))
         raise
@@ -354,7 +357,6 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
         stop.restore()
         if bar is not None:
             bar.close()
-    summary = finish(status, last_dt)
     return RunResult(history.arrays(), stepper.body_fields(), summary, out,
                      writer.entries if writer else [])
 
