@@ -114,3 +114,22 @@ def test_restart_into_another_folder_is_refused(project):
     refused(cli(project, "--restart", "X", "--overwrite"), "--overwrite")
     assert tree(project / "X") == before
     assert not (project / "Y").exists()
+
+
+@pytest.mark.parametrize("limit", [1_000, 4_000])
+def test_a_file_size_limit_is_a_failed_run_that_keeps_what_it_wrote(project, limit):
+    """Writing fails (a file-size limit, as a full disk): exit 3 with one line naming the
+    file, no traceback; the files written before stay readable."""
+    import resource
+
+    def small_files():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    proc = run_cli("run", "case.toml", "--no-progress", "-o", "X", cwd=project,
+                   env={**os.environ, "NUMBA_NUM_THREADS": "1"}, preexec_fn=small_files)
+    assert proc.returncode == 3, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert "writing the outputs failed" in lines[0]
+    for path in (project / "X").glob("fields_*.vtu"):
+        assert path.stat().st_size > 0

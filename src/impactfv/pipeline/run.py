@@ -285,7 +285,10 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     else:
         t, steps = 0.0, 0
         record(0.0, 0.0, 0)
-        snapshot(0.0)
+        try:
+            snapshot(0.0)
+        except OSError as exc:
+            raise SimulationError(f"{_write_failure(exc)} at the start") from None
         next_output = interval
     next_checkpoint = _next_multiple(t, checkpoint_every) if checkpoint_every else math.inf
     checkpointed = steps if restart else -1
@@ -353,12 +356,25 @@ def _run_stepper(stepper, schedule, output_dir, progress, restart, checkpoint_ev
     except SimulationError as exc:
         finish("failed", reason=str(exc))
         raise
+    except OSError as exc:
+        # a full disk or a file-size limit: a failed run, which keeps what it could write
+        reason = _write_failure(exc)
+        try:
+            finish("failed", reason=reason)
+        except OSError:
+            pass
+        raise SimulationError(f"{reason} at step {steps}, time {t:.6e} s", step=steps,
+                              time=t) from None
     finally:
         stop.restore()
         if bar is not None:
             bar.close()
     return RunResult(history.arrays(), stepper.body_fields(), summary, out,
                      writer.entries if writer else [])
+
+
+def _write_failure(exc: OSError) -> str:
+    return f"writing the outputs failed ({exc.strerror or exc}: {exc.filename})"
 
 
 class _FrameCounter:
