@@ -133,3 +133,28 @@ def test_a_file_size_limit_is_a_failed_run_that_keeps_what_it_wrote(project, lim
     assert "writing the outputs failed" in lines[0]
     for path in (project / "X").glob("fields_*.vtu"):
         assert path.stat().st_size > 0
+
+
+@pytest.mark.parametrize("entry,kind", [("history.csv", "dir"), ("fields_0003.vtu", "dir"),
+                                        ("summary.json", "dir"), ("checkpoints", "file"),
+                                        ("plots", "file")])
+@pytest.mark.parametrize("restart", [False, True])
+def test_output_entries_of_the_wrong_kind_are_refused(project, entry, kind, restart):
+    """A folder where the run writes a file, or a file where it keeps a folder: one line,
+    exit 2, nothing changed, for a fresh run and for a restart."""
+    assert cli(project, "-o", "X", "--checkpoint-every", "5e-7").returncode == 0
+    path = project / "X" / entry
+    if path.is_dir():
+        for p in path.iterdir():
+            p.unlink()
+        path.rmdir()
+    else:
+        path.unlink(missing_ok=True)
+    if kind == "dir":
+        path.mkdir()
+    else:
+        path.write_text("not a folder")
+    before = tree(project / "X")
+    args = ["--restart", "X"] if restart else ["-o", "X", "--overwrite"]
+    refused(cli(project, *args), entry)
+    assert tree(project / "X") == before

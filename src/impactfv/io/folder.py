@@ -64,12 +64,19 @@ class OutputFolder:
                 raise InputError(f"{linked}: is a symbolic link; a run writes only into "
                                  "folders it made (remove the link, or choose another output "
                                  "folder with -o)")
-        for pattern in OUTPUT_PATTERNS:
+            if linked.exists() and not linked.is_dir():
+                raise InputError(f"{linked}: is a file where the run keeps a folder (remove "
+                                 "it, or choose another output folder with -o)")
+        for pattern in OUTPUT_PATTERNS + ("fields_*.vtu", "history.csv", "summary.json",
+                                          "fields.pvd"):
             for found in path.glob(pattern):
                 if found.is_symlink():
                     raise InputError(f"{found}: is a symbolic link; a run never writes or "
                                      "deletes through a link (remove it, or choose another "
                                      "output folder with -o)")
+                if found.is_dir():
+                    raise InputError(f"{found}: is a folder where the run writes a file "
+                                     "(remove it, or choose another output folder with -o)")
         if not self.fresh or self.overwrite:
             return
         if not (path / MARKER_NAME).exists():
