@@ -68,11 +68,10 @@ def case_description(case) -> dict[str, str]:
     return out
 
 
-def case_fingerprint(case) -> str:
-    """A hash of :func:`case_description`, so a checkpoint is never continued with another
-    case (a changed mesh file included)."""
-    text = json.dumps(case_description(case), sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()
+def fingerprint_of(description: dict) -> str:
+    """A hash of a case's :func:`case_description`, which a checkpoint carries, so that it is
+    never continued with another case (a changed mesh file included)."""
+    return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()
 
 
 def changed_keys(old: dict, new: dict) -> list[str]:

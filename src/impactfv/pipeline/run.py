@@ -28,7 +28,7 @@ from ..backends.threads import threads_problem, using_threads
 from ..case import Case
 from ..errors import InputError, SimulationError
 from ..io.checkpoint import (RESTART_MAY_CHANGE, BadCheckpoint, case_description,
-                             case_fingerprint, changed_keys, load_good_checkpoint,
+                             changed_keys, fingerprint_of, load_good_checkpoint,
                              save_checkpoint)
 from ..io.folder import OutputFolder
 from ..memory import estimate_case, memory_problem, resident_bytes
@@ -145,7 +145,7 @@ def _run(case, output_dir, progress, restart, checkpoint_every, handle_signals, 
         raise InputError(f"{case.source}: {problem}")
     return run_stepper(stepper, schedule, output_dir, progress=progress, restart=restart,
                        checkpoint_every=checkpoint_every, handle_signals=handle_signals,
-                       fingerprint=case_fingerprint(case), title=case.title,
+                       title=case.title,
                        wall_start=wall_start, walls=case_walls(case),
                        contacts=case_contacts(case), description=case_description(case),
                        preflight=refuse, source=case.source, overwrite=overwrite)
@@ -177,22 +177,22 @@ def case_contacts(case) -> list:
 
 def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | None = None,
                 restart: bool = False, checkpoint_every: float | None = None,
-                handle_signals: bool = False, fingerprint: str = "", title: str | None = None,
+                handle_signals: bool = False, title: str | None = None,
                 wall_start: float | None = None, walls=(), contacts=None,
                 description: dict | None = None, preflight=None,
                 source: str = "", overwrite: bool = False) -> RunResult:
     """Run ``stepper`` to ``schedule.end_time``; see :func:`run` for the options. The output
     folder, if any, is locked for the run (io.folder.OutputFolder). ``walls``: rigid walls
     drawn in the frames (:func:`case_walls`); ``contacts``: described in the summary;
-    ``description``: the case's key table (io.checkpoint.case_description), so that a refused
-    restart can name what changed; ``preflight(stepper, t, steps)``: a reason to refuse a
+    ``description``: the case's key table (io.checkpoint.case_description), whose hash a
+    checkpoint carries and so that a refused restart can name what changed; ``preflight(stepper, t, steps)``: a reason to refuse a
     restarted run before it continues, or None. ``overwrite``: see :func:`run`. The options
     are checked before the folder is touched."""
     _check_run_options(output_dir, restart, checkpoint_every, handle_signals,
                        schedule.end_time)
     args = (stepper, schedule, output_dir, progress, restart, checkpoint_every, handle_signals,
-            fingerprint, title, wall_start, walls, contacts, description or {}, preflight,
-            source)
+            fingerprint_of(description or {}), title, wall_start, walls, contacts,
+            description or {}, preflight, source)
     comm = getattr(stepper, "comm", None)
     if output_dir is None:
         return _run_stepper(*args)
