@@ -891,3 +891,15 @@ def test_reaction_columns_never_collide(tmp_path):
     columns = [c for c in history if c.startswith("reaction_")]
     assert len(columns) == len(set(columns)) == 6
     assert np.any(np.abs(history["reaction_xmin_fx"]) > 0)
+
+
+@pytest.mark.parametrize("depth", [400, 2000, 20000])
+def test_deeply_nested_toml_is_an_input_error(tmp_path, depth):
+    """Arrays nested thousands deep, in the case file or a --set value: one line, exit 2,
+    not a RecursionError."""
+    nested = "[" * depth + "]" * depth
+    path = write_case(tmp_path, run_extra=f"cfl = {nested}")
+    assert_input_error(run_cli("run", path, "-o", tmp_path / "out"), "case.toml")
+    path = write_case(tmp_path)
+    assert_input_error(run_cli("run", path, "-o", tmp_path / "out", "--set",
+                               f"run.cfl={nested}"), "run.cfl")

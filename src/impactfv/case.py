@@ -477,6 +477,9 @@ def load_case(source: Union[str, Path, dict], base_dir: Union[str, Path, None] =
             data = tomllib.loads(path.read_text(encoding="utf-8"))
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"{path}: invalid TOML ({exc})") from None
+        except RecursionError:
+            raise InputError(f"{path}: invalid TOML (arrays or tables nested too deeply)") \
+                from None
         except UnicodeDecodeError:
             raise InputError(f"{path}: not a UTF-8 text file") from None
         except OSError as exc:

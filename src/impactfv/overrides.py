@@ -40,6 +40,9 @@ def parse_value(text: str):
     """A TOML value, or the text itself when it is a bare word and no TOML value."""
     try:
         return tomllib.loads(f"value = {text}")["value"]
+    except RecursionError:
+        raise InputError(f"not a TOML value: {text[:20]!r}... (arrays or tables nested too "
+                         "deeply)") from None
     except tomllib.TOMLDecodeError:
         if re.fullmatch(r"[A-Za-z0-9_.+\-]+", text.strip()):
             return text.strip()
