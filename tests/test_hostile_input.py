@@ -903,3 +903,54 @@ def test_deeply_nested_toml_is_an_input_error(tmp_path, depth):
     path = write_case(tmp_path)
     assert_input_error(run_cli("run", path, "-o", tmp_path / "out", "--set",
                                f"run.cfl={nested}"), "run.cfl")
+
+
+def _two_blocks(tmp_path, va, vb):
+    text = """[run]
+end_time = 1e-6
+""" + material_toml() + "".join(f"""[[body]]
+name = "{name}"
+material = "copper"
+velocity = [{v}, 0.0]
+mesh = {{ generator = "rectangle", origin = [{x0}, 0.0], size = [0.01, 0.004], divisions = [10, 4] }}
+""" for name, v, x0 in (("a", va, -0.0101), ("b", vb, 0.0001))) + """[[contact]]
+bodies = ["a", "b"]
+model = "slip"
+"""
+    path = tmp_path / "blocks.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize("va,vb", [(0.0, 0.0), (-5.0, 5.0)], ids=["at rest", "moving apart"])
+def test_compare_without_a_closing_speed_gives_no_reference_ratios(tmp_path, va, vb):
+    """Bodies at rest or moving apart have no acoustic reference pressure: the columns
+    measured against it are empty (NaN), never negative or a traceback; the energy ratios
+    of bodies at rest too."""
+    import csv
+
+    proc = run_cli("compare", _two_blocks(tmp_path, va, vb), "-o", tmp_path / "cmp",
+                   env={**os.environ, "NUMBA_NUM_THREADS": "1"})
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+    with open(tmp_path / "cmp" / "comparison.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [r["method"] for r in rows] == ["fv", "fem-t3", "fem-q4md"]
+    for row in rows:
+        for key in ("peak_over_pref", "plateau_over_pref", "roughness"):
+            assert row[key] == "nan", (key, row[key])
+        assert (row["energy_end_over_start"] == "nan") == (va == vb == 0.0)
+
+
+def test_plot_on_damaged_files_is_one_line_or_draws(tmp_path):
+    out = tmp_path / "out"
+    assert run_cli("run", write_case(tmp_path), "-o", out, "--no-progress").returncode == 0
+    pvd = (out / "fields.pvd").read_text()
+    for damaged, word in ((pvd.replace('timestep="', 'time="', 1), "timestep"),
+                          (pvd.replace('file="', 'name="', 1), "names no file")):
+        (out / "fields.pvd").write_text(damaged)
+        assert_input_error(run_cli("plot", out), "fields.pvd", word)
+    (out / "fields.pvd").write_text(pvd)
+    (out / "summary.json").write_text("[1, 2]")
+    proc = run_cli("plot", out)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr

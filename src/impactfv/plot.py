@@ -59,7 +59,17 @@ def read_pvd(path: Path) -> list[tuple[float, str]]:
         root = ET.parse(path).getroot()
     except (ET.ParseError, OSError) as exc:
         raise InputError(f"{path}: unreadable ParaView collection ({exc})") from None
-    return [(float(d.get("timestep")), d.get("file")) for d in root.iter("DataSet")]
+    entries = []
+    for k, d in enumerate(root.iter("DataSet")):
+        try:
+            time = float(d.get("timestep"))
+        except (TypeError, ValueError):
+            raise InputError(f"{path}: data set {k} has no valid timestep "
+                             f"({d.get('timestep')!r})") from None
+        if not d.get("file"):
+            raise InputError(f"{path}: data set {k} names no file")
+        entries.append((time, d.get("file")))
+    return entries
 
 
 def pick_frames(frames, times=None, count=4) -> list[int]:
@@ -238,6 +248,8 @@ def history_picture(folder: Path, out: Path) -> Path:
             summary = json.loads((folder / "summary.json").read_text())
         except (OSError, ValueError):
             summary = {}
+        if not isinstance(summary, dict):
+            summary = {}             # damaged: the pictures do without its names
     plane = "momentum_z" not in h
     per = ", per metre of thickness" if plane else ""
     contacts = sorted({int(k[len("contact"):].split("_")[0]) for k in h
