@@ -277,7 +277,10 @@ def test_a_new_run_leaves_no_files_of_the_old_one(tmp_path):
     assert len(list(out.glob("fields_*.vtu"))) == 21
     (out / ".history.csv.abc.tmp").write_text("half written by a killed run")
     second = write_case(tmp_path, name="second.toml", end_time="2e-7")
-    assert run_cli("run", second, "-o", out, "--no-progress").returncode == 0
+    # over checkpoints --restart could continue: only with --overwrite (tests/
+    # test_output_folder.py)
+    assert run_cli("run", second, "-o", out, "--no-progress").returncode == 2
+    assert run_cli("run", second, "-o", out, "--no-progress", "--overwrite").returncode == 0
     frames = sorted(p.name for p in out.glob("fields_*.vtu"))
     pvd = (out / "fields.pvd").read_text()
     assert frames == [f"fields_{k:04d}.vtu" for k in range(11)]
@@ -405,8 +408,9 @@ RESTART_RUN = 'output_interval = 5e-8'
 
 
 def _checkpointed_run(tmp_path, end_time="4e-7", every="1e-7", name="case.toml"):
+    # every checkpoint kept, so that the tests can pick the one to continue from
     path = write_case(tmp_path, name=name, end_time=end_time, run_extra=RESTART_RUN,
-                      vx='"50*sin(3000*x)"')
+                      vx='"50*sin(3000*x)"', extra="\n[output]\nkeep_checkpoints = 100\n")
     out = tmp_path / "out"
     proc = run_cli("run", path, "-o", out, "--no-progress", "--checkpoint-every", every)
     assert proc.returncode == 0, proc.stderr
@@ -750,7 +754,8 @@ def test_run_refuses_a_mesh_file_case_beyond_the_memory_available(tmp_path):
     proc = run_cli("run", path, "-o", out, "--no-progress", env=env)
     assert_input_error(proc, str(path), "bytes per node", "more than the 20 MiB")
     assert (out / "history.csv").read_text() == "precious\n"
-    ok = run_cli("run", path, "-o", out, "--no-progress",
+    # the folder holds a file impactfv did not write: only with --overwrite
+    ok = run_cli("run", path, "-o", out, "--no-progress", "--overwrite",
                  env=dict(os.environ, IMPACTFV_MEMORY_LIMIT="4G"))
     assert ok.returncode == 0, ok.stderr
 

@@ -90,21 +90,26 @@ class OutputFolder:
                              f"--restart {path}, or pass --overwrite to start afresh (which "
                              "deletes them)")
 
+    def _refuse_if_busy(self):
+        """An InputError when a live process other than this one holds the lock."""
+        try:
+            pid = int(self.lock.read_text().strip() or 0)
+        except (OSError, ValueError):
+            return
+        if pid > 0 and pid != os.getpid() and _alive(pid):
+            raise InputError(f"{self.path}: another impactfv run (process {pid}) is writing "
+                             "to this folder; wait for it or choose another with -o") from None
+
     def __enter__(self):
+        # a busy folder first (the other run's files are its own), then what is not ours
+        self._refuse_if_busy()
         self._refuse_what_is_not_ours()
         self.path.mkdir(parents=True, exist_ok=True)
         for attempt in range(2):
             try:
                 fd = os.open(self.lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
             except FileExistsError:
-                try:
-                    pid = int(self.lock.read_text().strip() or 0)
-                except (OSError, ValueError):
-                    pid = 0
-                if pid > 0 and pid != os.getpid() and _alive(pid):
-                    raise InputError(f"{self.path}: another impactfv run (process {pid}) is "
-                                     "writing to this folder; wait for it or choose another "
-                                     "with -o") from None
+                self._refuse_if_busy()
                 self.lock.unlink(missing_ok=True)     # stale: its process is gone
                 continue
             interrupts.remove_on_exit(self.lock)   # a signal before the loop ends at once
