@@ -883,10 +883,18 @@ def test_names_that_would_break_the_history_csv_are_refused(tmp_path, name):
 
 def test_reaction_columns_never_collide(tmp_path):
     """A region named in two boundary entries gets a column of its own that no other
-    region's name gives: every reaction is in the history."""
+    region's name gives (a region "L" twice beside a region "L_2", which the generators
+    cannot name, through the naming itself): every reaction is in the history."""
     import numpy as np
 
     from impactfv import load_case, run
+    from impactfv.scheme.energy import distinct_names
+
+    for names in (["L", "L", "L2"], ["L", "L", "L_2"], ["L_2", "L", "L"],
+                  ["L", "L", "L", "L_3"]):
+        named = distinct_names(names)
+        assert len(set(named)) == len(names)
+        assert all(n == b or n.startswith(b + "_") for n, b in zip(named, names))
 
     case = load_case(write_case(tmp_path, extra=(
         'boundary = [{ region = "xmin", velocity = { x = 0.0 } },\n'

@@ -146,7 +146,10 @@ def _cells(fields):
 
 
 def pressure_roughness(bodies: dict, p_ref: float, threshold: float = 0.01) -> float:
-    """Median over loaded nodes of |p_i - mean of p over edge neighbours| / p_ref."""
+    """Median over loaded nodes of |p_i - mean of p over edge neighbours| / p_ref; NaN
+    without a reference pressure."""
+    if not p_ref > 0:
+        return float("nan")
     values = []
     for f in bodies.values():
         p = np.asarray(f["pressure"], float)
@@ -158,8 +161,6 @@ def pressure_roughness(bodies: dict, p_ref: float, threshold: float = 0.01) -> f
         loaded = np.abs(p) > threshold * abs(p_ref)
         values.append(np.abs(p - mean)[loaded] / abs(p_ref))
     values = np.concatenate(values)
-    if not p_ref > 0:
-        return float("nan")
     return float(np.median(values)) if len(values) else 0.0
 
 

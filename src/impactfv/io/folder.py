@@ -67,8 +67,7 @@ class OutputFolder:
             if linked.exists() and not linked.is_dir():
                 raise InputError(f"{linked}: is a file where the run keeps a folder (remove "
                                  "it, or choose another output folder with -o)")
-        for pattern in OUTPUT_PATTERNS + ("fields_*.vtu", "history.csv", "summary.json",
-                                          "fields.pvd"):
+        for pattern in OUTPUT_PATTERNS:
             for found in path.glob(pattern):
                 if found.is_symlink():
                     raise InputError(f"{found}: is a symbolic link; a run never writes or "

@@ -185,9 +185,10 @@ def run_stepper(stepper, schedule: Schedule, output_dir=None, progress: bool | N
     folder, if any, is locked for the run (io.folder.OutputFolder). ``walls``: rigid walls
     drawn in the frames (:func:`case_walls`); ``contacts``: described in the summary;
     ``description``: the case's key table (io.checkpoint.case_description), whose hash a
-    checkpoint carries and so that a refused restart can name what changed; ``preflight(stepper, t, steps)``: a reason to refuse a
-    restarted run before it continues, or None. ``overwrite``: see :func:`run`. The options
-    are checked before the folder is touched."""
+    checkpoint carries and with which a refused restart names what changed;
+    ``preflight(stepper, t, steps)``: a reason to refuse a restarted run before it continues,
+    or None. ``overwrite``: see :func:`run`. The options are checked before the folder is
+    touched."""
     _check_run_options(output_dir, restart, checkpoint_every, handle_signals,
                        schedule.end_time)
     args = (stepper, schedule, output_dir, progress, restart, checkpoint_every, handle_signals,

@@ -18,6 +18,20 @@ import numpy as np
 import scipy.sparse as sp
 
 
+def distinct_names(names: list[str]) -> list[str]:
+    """The names made distinct for history columns: a name given twice gets _2, _3, ... but
+    never another entry's name (["L", "L", "L_2"] -> ["L", "L_3", "L_2"])."""
+    given = set(names)
+    out = []
+    for base in names:
+        name, n = base, 2
+        while name in out or (name != base and name in given):
+            name = f"{base}_{n}"
+            n += 1
+        out.append(name)
+    return out
+
+
 class EnergyBook:
     """Energy and reaction bookkeeping of one FV run (of one rank's owned nodes under MPI:
     ``total`` sums over ranks)."""
@@ -53,17 +67,7 @@ class EnergyBook:
                 rows.append(spec)
                 names.append(f"{body.name}_{spec.region}" if several else spec.region)
         self.reaction_rows = [k for k, spec in enumerate(rows, start=1) if m.bc_fixed[k].any()]
-        # a region named in two entries gets _2, _3, ... but never the name of another
-        # entry's region (a region "L" twice beside a region "L_2": L, L_3, L_2)
-        bases = {names[k - 1] for k in self.reaction_rows}
-        self.reaction_names = []
-        for k in self.reaction_rows:
-            base = name = names[k - 1]
-            n = 2
-            while name in self.reaction_names or (name != base and name in bases):
-                name = f"{base}_{n}"
-                n += 1
-            self.reaction_names.append(name)
+        self.reaction_names = distinct_names([names[k - 1] for k in self.reaction_rows])
         d, owned = m.dim, self.n_owned
         if self.reaction_rows:
             cols = [m.bc_nodes[k][m.bc_nodes[k] < owned] for k in self.reaction_rows]
